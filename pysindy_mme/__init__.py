@@ -1,0 +1,23 @@
+"""pysindy-mme: minimum model error estimation and floating-F stepwise regression.
+
+Find what an assumed model gets wrong (:class:`MME`), explain the error with
+a library of functions of the state (:class:`FloatingFStepwise`,
+:class:`PowerLibrary`), and measure how much the extended model helps
+(:func:`discover`).
+"""
+
+from .discovery import Discovery, ExtendedModel, discover
+from .libraries import PowerLibrary
+from .mme import MME
+from .stepwise import FloatingFStepwise
+
+__all__ = [
+    "MME",
+    "Discovery",
+    "ExtendedModel",
+    "FloatingFStepwise",
+    "PowerLibrary",
+    "discover",
+]
+
+__version__ = "0.1.0"

@@ -1,0 +1,3 @@
+"""PLACEHOLDER (being written): PowerLibrary."""
+class PowerLibrary:  # noqa: D101
+    pass

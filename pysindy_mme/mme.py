@@ -1,0 +1,3 @@
+"""PLACEHOLDER (being written): MME."""
+class MME:  # noqa: D101
+    pass

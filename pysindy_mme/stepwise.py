@@ -1,0 +1,3 @@
+"""PLACEHOLDER (being written): FloatingFStepwise."""
+class FloatingFStepwise:  # noqa: D101
+    pass
