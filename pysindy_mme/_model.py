@@ -57,8 +57,6 @@ class ModelFunction:
             self._kind = "predict"
         elif hasattr(func, "predict") and hasattr(func, "optimizer"):
             self._kind = "predict"  # a pysindy SINDy model
-        elif hasattr(func, "predict") and hasattr(func, "correction_coef_"):
-            self._kind = "predict"  # an ExtendedModel
         elif callable(func):
             self._kind = "callable"
             self._takes_u = _accepts_input(func)
