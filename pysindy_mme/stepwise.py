@@ -1,3 +1,996 @@
-"""PLACEHOLDER (being written): FloatingFStepwise."""
-class FloatingFStepwise:  # noqa: D101
-    pass
+"""Floating-F stepwise regression: the paper's modified stepwise regression (MSR).
+
+:class:`FloatingFStepwise` is a pysindy optimizer. For every target (every
+equation) it selects library functions one at a time by partial F-ratios
+(Kolodziej & Mook, section III):
+
+* Phase I (Draper & Smith's stepwise regression): in each iteration, if a
+  function in the model has a partial F-ratio (eq. 20) below ``F_remove``,
+  the weakest one leaves; otherwise the candidate with the largest partial
+  F-ratio of entry (eq. 19) enters if it reaches ``F_enter``.
+* Phase II (the floating threshold): the threshold becomes the largest
+  partial F-ratio in the model divided by ``float_ratio``; the weakest
+  function below it leaves (one per iteration, all partial F-ratios and the
+  threshold are then recomputed); when none is below it, candidates must
+  reach ``max(F_enter, floating threshold)`` to enter.
+
+The selection never refits the model per candidate. It keeps an orthonormal
+basis ``Q`` of the model columns, every candidate residualised against it
+and the current residual, so an iteration costs ``O(n_samples * n_candidates)``
+(see :class:`_Path`).
+"""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from pysindy.optimizers import BaseOptimizer
+from scipy.linalg.blas import dger
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.utils.validation import check_is_fitted
+
+from ._validation import check_positive_number, check_probability
+from .anova import AnovaTable, f_critical, fit_anova, lstsq_refined
+
+__all__ = [
+    "FloatingFStepwise",
+    "Step",
+    "StepwiseCycleWarning",
+    "ExcludedFeaturesWarning",
+]
+
+# Temporaries of size n_samples x block are capped at this many doubles (32 MB).
+_BLOCK_ELEMENTS = 1 << 22
+# A target reproduced to this relative accuracy is fitted to rounding level:
+# partial F-ratios computed from a rounding-noise residual are meaningless, so
+# no further function may enter.
+_EXACT_FIT_RTOL = 1e-12
+
+
+class StepwiseCycleWarning(UserWarning):
+    """The selection returned to a model it had already visited and stopped there."""
+
+
+class ExcludedFeaturesWarning(UserWarning):
+    """Some library columns can never be selected (non-finite, constant, duplicate...)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One addition or removal made by :class:`FloatingFStepwise`.
+
+    Attributes
+    ----------
+    iteration : int
+        1-based iteration number (per target).
+    phase : int
+        1 (fixed thresholds) or 2 (floating threshold).
+    action : str
+        ``"add"`` or ``"remove"``.
+    feature : int
+        Library column index.
+    name : str
+        Its name (``feature_names`` given to ``fit``, else ``"f<index>"``).
+    partial_f : float
+        The function's partial F-ratio that triggered the step (of entry for
+        an addition, eq. 19; in the model for a removal, eq. 20).
+    threshold : float
+        The threshold it was compared with.
+    n_terms : int
+        Number of functions in the model after the step (constant excluded).
+    """
+
+    iteration: int
+    phase: int
+    action: str
+    feature: int
+    name: str
+    partial_f: float
+    threshold: float
+    n_terms: int
+
+
+def _safe_div(num, den):
+    """``num / den`` with ``x / 0 = inf`` for x > 0 and ``0 / 0 = 0``, silently."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.asarray(num, dtype=float) / den
+    return np.where(den > 0, out, np.where(np.asarray(num) > 0, np.inf, 0.0))
+
+
+def _blocks(n_rows: int, n_cols: int):
+    """Column slices whose ``n_rows x width`` temporaries stay small."""
+    width = max(1, _BLOCK_ELEMENTS // max(n_rows, 1))
+    for start in range(0, n_cols, width):
+        yield slice(start, min(start + width, n_cols))
+
+
+@dataclass
+class _Screen:
+    """Which library columns may be selected, and their centred, weighted form."""
+
+    carrier: int | None  # exactly constant column that carries the intercept
+    carrier_value: float
+    excluded: dict  # column -> reason
+    eligible: np.ndarray  # column indices that may be selected
+    mean: np.ndarray  # weighted means of the eligible columns
+    cnorm2: np.ndarray  # squared norms of the centred weighted eligible columns
+
+
+def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
+    """Set aside columns that can never be selected; find the intercept carrier.
+
+    Set aside: non-finite values, all-zero columns, constant columns other than
+    the first (which carries the intercept), columns collinear with the
+    constant, and columns collinear with an earlier column (exact duplicates
+    included; the first one is kept). Two blockwise passes at most.
+    """
+    n, p = x.shape
+    w = sw**2
+    finite = np.ones(p, dtype=bool)
+    allzero = np.zeros(p, dtype=bool)
+    exact_const = np.zeros(p, dtype=bool)
+    mean = np.zeros(p)
+    cn2 = np.zeros(p)
+    un2 = np.zeros(p)
+    fprint = np.zeros(p)
+    # A fixed random direction: collinear columns have equal |fingerprint|.
+    g = np.random.default_rng(20240601).standard_normal(n)
+    gw = g * sw
+    for blk in _blocks(n, p):
+        B = x[:, blk]
+        fin = np.all(np.isfinite(B), axis=0)
+        finite[blk] = fin
+        if not np.all(fin):
+            B = np.where(fin, B, 0.0)
+        allzero[blk] = fin & np.all(B == 0, axis=0)
+        exact_const[blk] = fin & np.all(B == B[:1], axis=0)
+        m = (w @ B) / n_eff
+        mean[blk] = m
+        C = (B - m) * sw[:, None]
+        cn2[blk] = np.einsum("ij,ij->j", C, C)
+        un2[blk] = np.einsum("ij,ij->j", B * sw[:, None], B * sw[:, None])
+        fprint[blk] = gw @ (B - m)
+    excluded = {}
+    carrier = None
+    carrier_value = 0.0
+    for j in np.flatnonzero(~finite):
+        excluded[int(j)] = "non-finite values"
+    for j in np.flatnonzero(allzero):
+        excluded[int(j)] = "all zero"
+    for j in np.flatnonzero(exact_const & ~allzero):
+        if carrier is None:
+            carrier = int(j)
+            carrier_value = float(x[0, j])
+        else:
+            excluded[int(j)] = f"constant (the intercept is carried by f{carrier})"
+    near_const = finite & ~allzero & ~exact_const & (cn2 <= tolerance**2 * un2)
+    for j in np.flatnonzero(near_const):
+        excluded[int(j)] = "collinear with the constant"
+    ok = finite & ~allzero & ~exact_const & ~near_const
+    fprint = np.abs(_safe_div(fprint, np.sqrt(cn2)))
+
+    # Pairwise collinearity: candidate pairs have close fingerprints (within
+    # ||g|| * 4 * tolerance, plus rounding); each candidate pair is then
+    # verified exactly on the centred columns.
+    idx = np.flatnonzero(ok)
+    order = idx[np.argsort(fprint[idx], kind="stable")]
+    a = fprint[order]
+    window = np.linalg.norm(g) * 4.0 * tolerance + 1e-9 * (1.0 + a)
+    hi = np.searchsorted(a, a + window, side="right")
+    for s in np.flatnonzero(hi > np.arange(a.size) + 1):
+        for t in range(s + 1, hi[s]):
+            i, j = sorted((int(order[s]), int(order[t])))
+            if j in excluded:
+                continue
+            ui = (x[:, i] - mean[i]) * sw / np.sqrt(cn2[i])
+            uj = (x[:, j] - mean[j]) * sw / np.sqrt(cn2[j])
+            resid = uj - (ui @ uj) * ui
+            if np.linalg.norm(resid) < tolerance:
+                if np.array_equal(x[:, i], x[:, j]):
+                    excluded[j] = f"duplicate of f{i}"
+                else:
+                    excluded[j] = f"collinear with f{i}"
+    eligible = np.array(
+        [j for j in np.flatnonzero(ok) if int(j) not in excluded], dtype=int
+    )
+    return _Screen(
+        carrier=carrier,
+        carrier_value=carrier_value,
+        excluded=dict(sorted(excluded.items())),
+        eligible=eligible,
+        mean=mean[eligible],
+        cnorm2=cn2[eligible],
+    )
+
+
+def _centred_candidates(x, sw, screen: _Screen) -> np.ndarray:
+    """The eligible columns, weighted and centred, as a Fortran-ordered array."""
+    n = x.shape[0]
+    cols = screen.eligible
+    R = np.empty((n, cols.size), order="F")
+    for blk in _blocks(n, cols.size):
+        R[:, blk] = (x[:, cols[blk]] - screen.mean[blk]) * sw[:, None]
+    return R
+
+
+class _Path:
+    """Incremental least-squares state of one target during selection.
+
+    Holds ``Q`` (orthonormal basis of the weighted constant and the model
+    columns), the triangular factor ``T`` with ``[sqrt(w), X_S] = Q T``,
+    ``z = Q^T y``, the residual ``e = y - Q z``, and every eligible candidate
+    residualised against ``Q`` (``R``, modified in place) with its squared
+    norm and its product with ``e``. Adding a column is a rank-1 update of
+    ``R`` (``O(n p)``); removing one rebuilds ``Q`` from the ``k`` model
+    columns (``O(n k^2)``) and re-residualises the candidates (``O(n p k)``).
+    """
+
+    def __init__(self, x, sw, yw, screen: _Screen, R, n_eff, tolerance):
+        self.x = x
+        self.sw = sw
+        self.yw = yw
+        self.carrier = screen.carrier
+        self.carrier_value = screen.carrier_value
+        self.cols = screen.eligible
+        self.cnorm2 = screen.cnorm2
+        self.R = R
+        self.n_eff = n_eff
+        self.tol2 = tolerance**2
+        self.support = []  # positions into self.cols, in Q column order
+        self.in_model = np.zeros(self.cols.size, dtype=bool)
+        n = sw.size
+        self.Q = np.zeros((n, 8), order="F")
+        norm_sw = float(np.linalg.norm(sw))
+        self.Q[:, 0] = sw / norm_sw
+        self.T = np.array([[norm_sw]])
+        self.z = np.array([self.Q[:, 0] @ yw])
+        self.e = yw - self.Q[:, 0] * self.z[0]
+        self.e -= self.Q[:, 0] * (self.Q[:, 0] @ self.e)
+        self.floor2 = (_EXACT_FIT_RTOL * float(np.linalg.norm(yw))) ** 2
+        self.nr2 = self.cnorm2.copy()
+        self.g = self.R.T @ self.e
+
+    @property
+    def k(self) -> int:
+        return len(self.support)
+
+    def sse(self) -> float:
+        return float(self.e @ self.e)
+
+    def exact_fit(self) -> bool:
+        return self.sse() <= self.floor2
+
+    def coefficients(self) -> np.ndarray:
+        """Least-squares coefficients of ``[constant, support...]``."""
+        return scipy.linalg.solve_triangular(self.T, self.z)
+
+    def in_model_f(self) -> np.ndarray:
+        """Partial F-ratios (eq. 20) of ``[constant, support...]``: ``t**2``."""
+        k = self.k
+        Tinv = scipy.linalg.solve_triangular(self.T, np.eye(k + 1))
+        beta = Tinv @ self.z
+        diag = np.einsum("ij,ij->i", Tinv, Tinv)
+        s2 = self.sse() / (self.n_eff - k - 1)
+        return _safe_div(beta**2, s2 * diag)
+
+    def candidate_f(self) -> np.ndarray:
+        """Partial F-ratios of entry (eq. 19); ``-inf`` where not eligible."""
+        sse = self.sse()
+        dof_new = self.n_eff - self.k - 2
+        elig = (~self.in_model) & (self.nr2 > self.tol2 * self.cnorm2)
+        if dof_new < 1:
+            elig[:] = False
+        with np.errstate(divide="ignore", invalid="ignore"):
+            red = np.where(elig, self.g**2 / np.where(elig, self.nr2, 1.0), 0.0)
+        red = np.minimum(red, sse)
+        f = _safe_div(red * dof_new, np.maximum(sse - red, 0.0))
+        return np.where(elig, f, -np.inf)
+
+    def _append_q(self, q):
+        k1 = self.k + 1  # columns in use before appending
+        if k1 >= self.Q.shape[1]:
+            grown = np.zeros((self.Q.shape[0], 2 * self.Q.shape[1]), order="F")
+            grown[:, :k1] = self.Q[:, :k1]
+            self.Q = grown
+        self.Q[:, k1] = q
+
+    def add(self, pos: int) -> None:
+        Qk = self.Q[:, : self.k + 1]
+        xj = self.x[:, self.cols[pos]] * self.sw
+        # Gram-Schmidt twice: orthogonal to working precision even when the
+        # column is nearly in the span of the model.
+        a = Qk.T @ xj
+        r = xj - Qk @ a
+        a2 = Qk.T @ r
+        r -= Qk @ a2
+        a += a2
+        rho = float(np.linalg.norm(r))
+        q = r / rho
+        k1 = self.k + 1
+        T = np.zeros((k1 + 1, k1 + 1))
+        T[:k1, :k1] = self.T
+        T[:k1, k1] = a
+        T[k1, k1] = rho
+        self.T = T
+        zq = float(q @ self.e)
+        self.z = np.append(self.z, zq)
+        self.e -= q * zq
+        self._append_q(q)
+        self.support.append(pos)
+        self.in_model[pos] = True
+        # Residualise every candidate against q: one rank-1 update, in place.
+        wq = self.R.T @ q
+        dger(-1.0, q, wq, a=self.R, overwrite_a=1)
+        old = self.nr2
+        self.nr2 = old - wq**2
+        # Downdating a squared norm loses accuracy when most of it goes away:
+        # recompute those columns directly.
+        redo = np.flatnonzero(self.nr2 < 1e-6 * old)
+        if redo.size:
+            Rr = self.R[:, redo]
+            self.nr2[redo] = np.einsum("ij,ij->j", Rr, Rr)
+        self.R[:, pos] = 0.0
+        self.nr2[pos] = 0.0
+        self.g = self.R.T @ self.e
+
+    def remove(self, pos: int) -> None:
+        self.support.remove(pos)
+        self.in_model[pos] = False
+        cols = self.cols[self.support]
+        A = np.column_stack([self.sw, self.x[:, cols] * self.sw[:, None]])
+        Q, T = np.linalg.qr(A)
+        k1 = Q.shape[1]
+        self.Q[:, :k1] = Q
+        self.Q[:, k1:] = 0.0
+        self.T = T
+        self.z = Q.T @ self.yw
+        self.e = self.yw - Q @ self.z
+        self.e -= Q @ (Q.T @ self.e)
+        n = self.sw.size
+        for blk in _blocks(n, self.cols.size):
+            B = self.x[:, self.cols[blk]] * self.sw[:, None]
+            B -= Q @ (Q.T @ B)
+            self.R[:, blk] = B
+        self.nr2 = np.einsum("ij,ij->j", self.R, self.R)
+        model = np.flatnonzero(self.in_model)
+        self.R[:, model] = 0.0
+        self.nr2[model] = 0.0
+        self.g = self.R.T @ self.e
+
+
+class FloatingFStepwise(BaseOptimizer):
+    """Stepwise regression on partial F-ratios with a floating threshold.
+
+    The modified stepwise regression (MSR) of Kolodziej & Mook as a pysindy
+    optimizer: ``ps.SINDy(optimizer=FloatingFStepwise())``. Each target
+    (equation) gets its own support. Phase I is Draper & Smith's stepwise
+    regression with fixed thresholds; Phase II (``floating=True``) raises the
+    threshold to the largest partial F-ratio in the model divided by
+    ``float_ratio`` and removes the functions below it, one at a time.
+
+    Parameters
+    ----------
+    f_enter : float, default 10.0
+        Partial F-ratio a candidate needs to enter (the paper's ``F*``).
+    f_remove : float, optional
+        A function in the model whose partial F-ratio falls below this leaves.
+        Defaults to ``f_enter``; must not exceed it (the selection could cycle).
+    alpha_enter, alpha_remove : float in (0, 1), optional
+        Significance levels. When ``alpha_enter`` is given they replace
+        ``f_enter``/``f_remove``: the thresholds become
+        ``scipy.stats.f.ppf(1 - alpha, 1, dof_E)`` at the current residual
+        degrees of freedom (as MATLAB's ``stepwisefit``): ``dof_E`` of the
+        enlarged model for entry, of the current model for removal.
+        ``alpha_remove`` defaults to ``max(alpha_enter, 0.10)`` (MATLAB's
+        default) and must be ``>= alpha_enter``.
+    floating : bool, default True
+        Run Phase II.
+    float_ratio : float, default 10.0
+        Phase II threshold = largest partial F-ratio in the model divided by
+        this (the paper: one order of magnitude). Must be ``>= 1``.
+    max_iter : int, default 1000
+        Maximum number of additions plus removals per target. Reaching it
+        raises a ``ConvergenceWarning`` and sets ``converged_`` to False.
+    drop_insignificant_constant : bool, default True
+        The constant is always in the regression while functions are selected
+        and is never a candidate. At the end, if its partial F-ratio (its
+        ``t**2``) is below the removal threshold, the selected functions are
+        refit through the origin and the intercept reported as 0, so that
+        dynamics without a constant term print without a ``1`` term and
+        supports can be compared exactly. ``anova_`` still describes the fit
+        with intercept (the paper's Table II has an Intercept row).
+    tolerance : float, default 1e-8
+        Collinearity tolerance: a candidate whose residual after projecting
+        out the model is below ``tolerance`` times its centred norm cannot
+        enter. Also used to set aside columns collinear with the constant or
+        with an earlier column before selection starts.
+    max_report : int, default 10
+        Number of strongest functions not in the model listed in ``anova_``
+        and :meth:`summary`.
+    normalize_columns, copy_X, initial_guess, unbias
+        Accepted for compatibility with pysindy's ``BaseOptimizer`` and
+        ignored: selection by partial F-ratios is invariant to column scale,
+        the input is never modified, selection always starts from the
+        constant-only model (a non-None ``initial_guess`` raises a warning),
+        and coefficients are already ordinary least squares on the support.
+
+    Attributes
+    ----------
+    coef_ : ndarray (n_targets, n_features)
+        Least-squares coefficients on the selected functions (zero elsewhere).
+        If the library has a constant column (e.g. pysindy's ``"1"``), the
+        intercept is carried by it; otherwise by ``intercept_``.
+    intercept_ : ndarray (n_targets,)
+        The fitted constant when the library has no constant column (0 when it
+        has one, or when the constant was dropped).
+    ind_ : ndarray of bool (n_targets, n_features)
+        The support of each target.
+    Theta_ : ndarray (n_samples, n_features)
+        The library matrix that was fitted (a float view of ``x``, not a copy).
+    history_ : list of ndarray
+        ``coef_`` after each step (pysindy's meaning), starting from zeros.
+    anova_ : list of :class:`~pysindy_mme.anova.AnovaTable`
+        Final ANOVA table of each target (with intercept).
+    steps_ : list of list of :class:`Step`
+        The additions and removals of each target, in order.
+    n_iter_ : ndarray of int (n_targets,)
+        Steps taken per target.
+    converged_ : bool
+        False if some target hit ``max_iter``.
+    cycle_detected_ : bool
+        True if some target returned to a model already visited (in the same
+        phase); the selection then stopped there with a
+        :class:`StepwiseCycleWarning`.
+    intercept_dropped_ : ndarray of bool (n_targets,)
+        Whether the constant was dropped (``drop_insignificant_constant``).
+    excluded_ : dict
+        ``{column index: reason}`` for columns that can never be selected:
+        non-finite values, all zero, constant (a second constant column),
+        collinear with the constant, duplicate of / collinear with an earlier
+        column. They are listed in one :class:`ExcludedFeaturesWarning` per fit.
+    constant_feature_ : int or None
+        The library column that carries the intercept, if any.
+    feature_names_, target_names_ : list of str or None
+        Names given to :meth:`fit` (pysindy does not pass them: see
+        :meth:`summary`).
+    n_features_in_ : int
+
+    Notes
+    -----
+    ``sample_weight`` are frequency weights: the number of observations in the
+    degrees of freedom is ``sum(sample_weight)``, so a fit with integer weights
+    equals a fit on rows repeated by their weights. Rows of weight 0 are
+    ignored.
+
+    Inside ``ps.SINDy`` the optimizer does not see the feature names; print
+    the ANOVA tables with
+    ``model.optimizer.summary(model.get_feature_names(), model.feature_names)``.
+
+    Examples
+    --------
+    >>> import pysindy as ps
+    >>> model = ps.SINDy(optimizer=FloatingFStepwise(),
+    ...                  feature_library=ps.PolynomialLibrary(degree=3))
+    >>> model.fit(x, t=t)  # doctest: +SKIP
+    >>> print(model.optimizer.summary(model.get_feature_names(),
+    ...                               model.feature_names))  # doctest: +SKIP
+    """
+
+    # LinearRegression's tags read ``positive``; coefficients are unconstrained.
+    positive = False
+
+    def __init__(
+        self,
+        f_enter=10.0,
+        f_remove=None,
+        alpha_enter=None,
+        alpha_remove=None,
+        floating=True,
+        float_ratio=10.0,
+        max_iter=1000,
+        drop_insignificant_constant=True,
+        tolerance=1e-8,
+        max_report=10,
+        normalize_columns=False,
+        copy_X=True,
+        initial_guess=None,
+        unbias=False,
+    ):
+        # Parameters are only stored here (scikit-learn convention); fit
+        # validates them. BaseOptimizer.__init__ is not called because it
+        # validates and reshapes.
+        self.f_enter = f_enter
+        self.f_remove = f_remove
+        self.alpha_enter = alpha_enter
+        self.alpha_remove = alpha_remove
+        self.floating = floating
+        self.float_ratio = float_ratio
+        self.max_iter = max_iter
+        self.drop_insignificant_constant = drop_insignificant_constant
+        self.tolerance = tolerance
+        self.max_report = max_report
+        self.normalize_columns = normalize_columns
+        self.copy_X = copy_X
+        self.initial_guess = initial_guess
+        self.unbias = unbias
+
+    def set_params(self, **params):
+        """Set parameters (scikit-learn API); returns ``self``."""
+        super(BaseOptimizer, self).set_params(**params)
+        return self
+
+    # ------------------------------------------------------------------ checks
+    def _validate_params(self) -> dict:
+        f_enter = check_positive_number(self.f_enter, "f_enter")
+        if self.f_remove is None:
+            f_remove = f_enter
+        else:
+            f_remove = check_positive_number(self.f_remove, "f_remove")
+            if f_remove > f_enter:
+                raise ValueError(
+                    f"f_remove ({f_remove}) must not exceed f_enter ({f_enter}): "
+                    "a function could enter and leave forever"
+                )
+        alpha_enter = alpha_remove = None
+        if self.alpha_enter is not None:
+            alpha_enter = check_probability(self.alpha_enter, "alpha_enter")
+            if self.alpha_remove is None:
+                alpha_remove = max(alpha_enter, 0.10)
+            else:
+                alpha_remove = check_probability(self.alpha_remove, "alpha_remove")
+                if alpha_remove < alpha_enter:
+                    raise ValueError(
+                        f"alpha_remove ({alpha_remove}) must be >= alpha_enter "
+                        f"({alpha_enter}): a function could enter and leave forever"
+                    )
+        elif self.alpha_remove is not None:
+            raise ValueError(
+                "alpha_remove requires alpha_enter (significance levels replace "
+                "f_enter/f_remove only when alpha_enter is given)"
+            )
+        for name in ("floating", "drop_insignificant_constant"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        float_ratio = check_positive_number(
+            self.float_ratio, "float_ratio", minimum=1.0, strict=False
+        )
+        for name, minimum in (("max_iter", 1), ("max_report", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+                raise TypeError(f"{name} must be an integer, got {value!r}")
+            if value < minimum:
+                raise ValueError(f"{name} must be >= {minimum}, got {value}")
+        tolerance = check_positive_number(self.tolerance, "tolerance")
+        if tolerance >= 1:
+            raise ValueError(f"tolerance must be < 1, got {tolerance}")
+        return dict(
+            f_enter=f_enter,
+            f_remove=f_remove,
+            alpha_enter=alpha_enter,
+            alpha_remove=alpha_remove,
+            float_ratio=float_ratio,
+            tolerance=tolerance,
+        )
+
+    @staticmethod
+    def _validate_data(x, y, sample_weight):
+        try:
+            x = np.asarray(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"x must be a numeric array: {exc}") from None
+        if x.ndim != 2:
+            raise ValueError(
+                f"x must be 2-D (n_samples, n_features), got shape {x.shape}"
+            )
+        if x.shape[1] == 0:
+            raise ValueError("x has no columns (the library is empty)")
+        try:
+            y = np.array(y, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"y must be a numeric array: {exc}") from None
+        if y.ndim == 1:
+            y = y.reshape(-1, 1)
+        if y.ndim != 2:
+            raise ValueError(f"y must be 1-D or 2-D, got shape {y.shape}")
+        if y.shape[0] != x.shape[0]:
+            raise ValueError(
+                f"y has {y.shape[0]} rows but x has {x.shape[0]}: they must "
+                "have one row per sample"
+            )
+        bad = ~np.isfinite(y)
+        if np.any(bad):
+            row, col = np.argwhere(bad)[0]
+            kind = "NaN" if np.isnan(y[row, col]) else "inf"
+            raise ValueError(
+                f"y (the target) contains {kind} (first at row {row}, column "
+                f"{col}); remove those samples first (e.g. the NaN end points "
+                "of FiniteDifference(drop_endpoints=True))"
+            )
+        n = x.shape[0]
+        if sample_weight is None:
+            w = np.ones(n)
+        else:
+            try:
+                w = np.asarray(sample_weight, dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise TypeError(f"sample_weight must be numeric: {exc}") from None
+            if w.ndim == 0:
+                w = np.full(n, float(w))
+            if w.ndim != 1 or w.shape[0] != n:
+                raise ValueError(
+                    f"sample_weight must have one entry per sample ({n}), got "
+                    f"shape {w.shape}"
+                )
+            if not np.all(np.isfinite(w)):
+                raise ValueError("sample_weight contains NaN or inf")
+            if np.any(w < 0):
+                raise ValueError(
+                    f"sample_weight must be non-negative, got {w.min()} "
+                    f"(at index {int(np.argmin(w))})"
+                )
+        n_eff = float(w.sum())
+        if n_eff < 2:
+            raise ValueError(
+                f"need at least 2 observations (sum of sample_weight), got {n_eff:g}"
+            )
+        return x, y, w
+
+    def _thresholds(self, k: int, n_eff: float, p: dict):
+        """(entry, removal) thresholds for a model with ``k`` functions."""
+        if p["alpha_enter"] is None:
+            return p["f_enter"], p["f_remove"]
+        return (
+            float(f_critical(p["alpha_enter"], n_eff - k - 2)),
+            float(f_critical(p["alpha_remove"], n_eff - k - 1)),
+        )
+
+    # --------------------------------------------------------------------- fit
+    def _reduce(self, x, y, **kwargs):
+        """Not used: :meth:`fit` does the whole work (it needs the raw weights)."""
+        raise NotImplementedError("FloatingFStepwise.fit does not call _reduce")
+
+    def fit(self, x_, y, sample_weight=None, feature_names=None, target_names=None):
+        """Select the functions of each target and fit them by least squares.
+
+        Parameters
+        ----------
+        x_ : array-like (n_samples, n_features)
+            The library (pysindy's Theta). Columns with non-finite values are
+            set aside, not an error.
+        y : array-like (n_samples,) or (n_samples, n_targets)
+            Targets (time derivatives); must be finite.
+        sample_weight : float or array-like (n_samples,), optional
+            Non-negative frequency weights.
+        feature_names : sequence of str, optional
+            Names of the library columns (used by ``steps_`` and :meth:`summary`).
+        target_names : sequence of str, optional
+            Names of the targets.
+
+        Returns
+        -------
+        self
+        """
+        params = self._validate_params()
+        x, y, w = self._validate_data(x_, y, sample_weight)
+        n_features = x.shape[1]
+        if feature_names is not None and len(feature_names) != n_features:
+            raise ValueError(
+                f"feature_names has {len(feature_names)} names but x has "
+                f"{n_features} columns"
+            )
+        if target_names is not None and len(target_names) != y.shape[1]:
+            raise ValueError(
+                f"target_names has {len(target_names)} names but y has "
+                f"{y.shape[1]} columns"
+            )
+        if self.initial_guess is not None:
+            warnings.warn(
+                "FloatingFStepwise ignores initial_guess: selection always "
+                "starts from the constant-only model",
+                UserWarning,
+                stacklevel=2,
+            )
+        self.feature_names_ = None if feature_names is None else list(feature_names)
+        self.target_names_ = None if target_names is None else list(target_names)
+        self.n_features_in_ = n_features
+        self.Theta_ = x
+
+        keep = w > 0
+        if not np.all(keep):
+            x, y, w = x[keep], y[keep], w[keep]
+        sw = np.sqrt(w)
+        n_eff = float(w.sum())
+        tol = params["tolerance"]
+
+        screen = _screen_columns(x, sw, n_eff, tol)
+        self.excluded_ = screen.excluded
+        self.constant_feature_ = screen.carrier
+        if screen.excluded:
+            listed = "; ".join(
+                f"{self._name(j)}: {why}" for j, why in screen.excluded.items()
+            )
+            warnings.warn(
+                f"{len(screen.excluded)} library column(s) can never be selected "
+                f"({listed})",
+                ExcludedFeaturesWarning,
+                stacklevel=2,
+            )
+        R0 = _centred_candidates(x, sw, screen)
+
+        n_targets = y.shape[1]
+        coef = np.zeros((n_targets, n_features))
+        intercept = np.zeros(n_targets)
+        self.history_ = [coef.copy()]
+        self.anova_ = []
+        self.steps_ = []
+        self.n_iter_ = np.zeros(n_targets, dtype=int)
+        self.intercept_dropped_ = np.zeros(n_targets, dtype=bool)
+        self.converged_ = True
+        self.cycle_detected_ = False
+        for t in range(n_targets):
+            # Every target starts from the same centred candidates.
+            R = R0 if t == n_targets - 1 else R0.copy(order="F")
+            path = _Path(x, sw, y[:, t] * sw, screen, R, n_eff, tol)
+            steps = self._select(path, t, coef, params, n_eff)
+            self.steps_.append(steps)
+            self.n_iter_[t] = len(steps)
+            row, icpt, table, dropped = self._final_fit(
+                path, x, y[:, t], w, screen, params, n_eff
+            )
+            coef[t] = row
+            intercept[t] = icpt
+            self.anova_.append(table)
+            self.intercept_dropped_[t] = dropped
+            self.history_.append(coef.copy())
+            del path, R
+        self.coef_ = coef
+        self.intercept_ = intercept
+        self.ind_ = coef != 0
+        return self
+
+    def _name(self, j: int) -> str:
+        names = getattr(self, "feature_names_", None)
+        return str(names[j]) if names is not None else f"f{j}"
+
+    def _select(self, path: _Path, target: int, coef, params, n_eff) -> list:
+        """Phases I and II for one target; returns the steps taken."""
+        steps = []
+        phase = 1
+        visited = {(1, frozenset())}
+        cols = path.cols
+        while True:
+            k = path.k
+            enter_thr, remove_thr = self._thresholds(k, n_eff, params)
+            f_in = path.in_model_f()[1:] if k else np.zeros(0)
+            if phase == 2 and k:
+                floating = float(np.max(f_in)) / params["float_ratio"]
+                enter_thr = max(enter_thr, floating)
+                remove_thr = max(remove_thr, floating)
+            action = None
+            if k and float(np.min(f_in)) < remove_thr:
+                i = int(np.argmin(f_in))
+                action = ("remove", path.support[i], float(f_in[i]), remove_thr)
+            elif not path.exact_fit():
+                f_cand = path.candidate_f()
+                if f_cand.size:
+                    best = int(np.argmax(f_cand))
+                    # -inf marks "not eligible"; +inf (exact improvement) may enter.
+                    if f_cand[best] > -np.inf and f_cand[best] >= enter_thr:
+                        action = ("add", best, float(f_cand[best]), enter_thr)
+            if action is None:
+                if phase == 1 and self.floating:
+                    phase = 2
+                    visited.add((2, frozenset(path.support)))
+                    continue
+                break
+            if len(steps) >= self.max_iter:
+                self.converged_ = False
+                warnings.warn(
+                    f"FloatingFStepwise reached max_iter={self.max_iter} on target "
+                    f"{target} before the selection settled; the last model is kept",
+                    ConvergenceWarning,
+                    stacklevel=3,
+                )
+                break
+            kind, pos, fval, thr = action
+            if kind == "add":
+                path.add(pos)
+            else:
+                path.remove(pos)
+            feature = int(cols[pos])
+            steps.append(
+                Step(
+                    iteration=len(steps) + 1,
+                    phase=phase,
+                    action=kind,
+                    feature=feature,
+                    name=self._name(feature),
+                    partial_f=fval,
+                    threshold=float(thr),
+                    n_terms=path.k,
+                )
+            )
+            self._record_history(path, target, coef)
+            key = (phase, frozenset(path.support))
+            if key in visited:
+                self.cycle_detected_ = True
+                warnings.warn(
+                    f"FloatingFStepwise returned to a model it had already visited "
+                    f"(target {target}, phase {phase}, iteration {len(steps)}); "
+                    "stopping there",
+                    StepwiseCycleWarning,
+                    stacklevel=3,
+                )
+                break
+            visited.add(key)
+        return steps
+
+    def _record_history(self, path: _Path, target: int, coef) -> None:
+        beta = path.coefficients()
+        row = np.zeros(coef.shape[1])
+        row[path.cols[path.support]] = beta[1:]
+        if path.carrier is not None:
+            row[path.carrier] = beta[0] / path.carrier_value
+        current = coef.copy()
+        current[target] = row
+        self.history_.append(current)
+
+    def _final_fit(self, path: _Path, x, y, w, screen: _Screen, params, n_eff):
+        """Coefficients on the support (accurate QR solve) and the ANOVA table."""
+        support = np.sort(path.cols[path.support])
+        top = []
+        if self.max_report > 0:
+            f_cand = path.candidate_f()
+            order = np.argsort(-f_cand, kind="stable")
+            order = order[np.isfinite(f_cand[order])][: self.max_report]
+            top = [int(path.cols[i]) for i in order]
+        table = fit_anova(
+            x,
+            y,
+            support,
+            intercept=True,
+            sample_weight=w,
+            candidates=top,
+            tolerance=params["tolerance"],
+        )
+        row = np.zeros(x.shape[1])
+        _, remove_thr = self._thresholds(len(support), n_eff, params)
+        dropped = bool(
+            self.drop_insignificant_constant
+            and not table.intercept_partial_f >= remove_thr
+        )
+        if dropped:
+            icpt = 0.0
+            if support.size:
+                sw = np.sqrt(w)
+                row[support] = lstsq_refined(x[:, support] * sw[:, None], y * sw)
+        else:
+            icpt = table.intercept
+            row[support] = table.coefficients
+            if screen.carrier is not None:
+                row[screen.carrier] = icpt / screen.carrier_value
+                icpt = 0.0
+        return row, icpt, table, dropped
+
+    # ----------------------------------------------------------------- predict
+    def predict(self, x):
+        """``x @ coef_.T + intercept_``, reading only the columns in use.
+
+        Columns with zero coefficients are not read, so non-finite values in
+        set-aside library columns do not spoil predictions.
+        """
+        check_is_fitted(self, "coef_")
+        x = np.asarray(x, dtype=float)
+        if x.ndim != 2 or x.shape[1] != self.coef_.shape[1]:
+            raise ValueError(
+                f"x must have shape (n_samples, {self.coef_.shape[1]}), got {x.shape}"
+            )
+        used = np.flatnonzero(np.any(self.coef_ != 0, axis=0))
+        return x[:, used] @ self.coef_[:, used].T + self.intercept_
+
+    # ----------------------------------------------------------------- summary
+    def summary(self, feature_names=None, target_names=None, target=None) -> str:
+        """ANOVA tables (the paper's Table II) and step histories as text.
+
+        Parameters
+        ----------
+        feature_names : sequence of str, optional
+            Library column names, e.g. ``model.get_feature_names()``. Defaults
+            to the names given to :meth:`fit`, else ``f0, f1, ...``.
+        target_names : sequence of str, optional
+            Target names, e.g. ``model.feature_names`` (shown as ``x0'``...).
+            Defaults to the names given to :meth:`fit`, else ``target 0``...
+        target : int, optional
+            Only this target.
+
+        Returns
+        -------
+        str
+        """
+        check_is_fitted(self, "coef_")
+        n_targets = self.coef_.shape[0]
+        if feature_names is None:
+            feature_names = self.feature_names_
+        if feature_names is not None and len(feature_names) != self.coef_.shape[1]:
+            raise ValueError(
+                f"feature_names has {len(feature_names)} names but the library has "
+                f"{self.coef_.shape[1]} columns"
+            )
+        if target_names is None:
+            target_names = self.target_names_
+        if target_names is not None:
+            if len(target_names) != n_targets:
+                raise ValueError(
+                    f"target_names has {len(target_names)} names but there are "
+                    f"{n_targets} targets"
+                )
+            labels = [f"({name})'" for name in target_names]
+        else:
+            labels = [f"target {t}" for t in range(n_targets)]
+        if target is None:
+            targets = range(n_targets)
+        else:
+            if not isinstance(target, numbers.Integral) or not 0 <= target < n_targets:
+                raise ValueError(f"target must be an index in [0, {n_targets - 1}]")
+            targets = [int(target)]
+
+        def name(j):
+            return str(feature_names[j]) if feature_names is not None else f"f{j}"
+
+        if self.alpha_enter is None:
+            f_remove = self.f_enter if self.f_remove is None else self.f_remove
+            rule = f"F_enter = {self.f_enter:g}, F_remove = {f_remove:g}"
+        else:
+            a_rem = (
+                max(self.alpha_enter, 0.10)
+                if self.alpha_remove is None
+                else self.alpha_remove
+            )
+            rule = f"alpha_enter = {self.alpha_enter:g}, alpha_remove = {a_rem:g}"
+        if self.floating:
+            rule += f", Phase II floating ratio = {self.float_ratio:g}"
+        else:
+            rule += ", Phase II off"
+        out = [f"FloatingFStepwise: {rule}"]
+        if self.excluded_:
+            out.append("Library columns set aside (never selected):")
+            out += [f"  {name(j)}: {why}" for j, why in self.excluded_.items()]
+        for t in targets:
+            table: AnovaTable = self.anova_[t]
+            out.append("")
+            out.append(
+                table.to_text(
+                    feature_names,
+                    title=f"=== {labels[t]}: final model ANOVA table "
+                    f"({len(self.steps_[t])} steps, n = {table.n:g}) ===",
+                )
+            )
+            if self.intercept_dropped_[t]:
+                out.append(
+                    f"  Note: the intercept's partial F ({table.intercept_partial_f:.4g})"
+                    " is below the removal threshold; coef_ is refit through the origin."
+                )
+            out.append("")
+            out.append("  Step history")
+            if self.steps_[t]:
+                out.append(
+                    f"  {'iter':>4} {'phase':>5} {'action':<7}{'function':<20}"
+                    f"{'partial F':>12}{'threshold':>12}{'terms':>7}"
+                )
+                for s in self.steps_[t]:
+                    out.append(
+                        f"  {s.iteration:>4} {s.phase:>5} {s.action:<7}"
+                        f"{name(s.feature):<20}{s.partial_f:>12.5g}"
+                        f"{s.threshold:>12.5g}{s.n_terms:>7}"
+                    )
+            else:
+                out.append("  (no function entered)")
+        if not self.converged_:
+            out.append("\nWARNING: max_iter was reached; the selection did not settle.")
+        if self.cycle_detected_:
+            out.append("\nWARNING: a cycle was detected; the selection stopped there.")
+        return "\n".join(out)
