@@ -1,3 +1,697 @@
-"""PLACEHOLDER (being written): MME."""
-class MME:  # noqa: D101
-    pass
+"""Minimum model error (MME) estimation as a pysindy differentiation method.
+
+:class:`MME` takes noisy measurements of some states of a system and an
+assumed model ``x' = f(x, u, t)``, and estimates the full state trajectory
+and the model error ``d(t)`` that the model needs to follow the data
+(Mook and Junkins 1988; Kolodziej and Mook, section II). The weight ``W``
+on the model error is set by the paper's covariance constraint (the
+measurement-minus-estimate variance equals the noise variance) or by
+maximum marginal likelihood. The numerical solver lives in
+:mod:`pysindy_mme.smoother`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from math import comb
+
+import numpy as np
+from pysindy.differentiation import BaseDifferentiation
+from scipy.optimize import brentq, minimize_scalar
+from sklearn.exceptions import ConvergenceWarning
+
+from ._model import ModelFunction
+from ._validation import (
+    as_float_array,
+    check_finite,
+    check_indices,
+    check_positive_number,
+    check_time,
+)
+from .smoother import DivergenceError, MMESmoother, unobservable_states
+
+__all__ = ["MME", "difference_noise_variance"]
+
+# W is searched in [W_ref * 10**-_W_DECADES, W_ref * 10**_W_DECADES].
+_W_DECADES = 12.0
+
+
+def difference_noise_variance(y, order: int = 4) -> np.ndarray:
+    """Noise variance of each column of ``y`` from its ``order``-th differences.
+
+    For ``y_k = s(t_k) + v_k`` with white noise ``v`` and a signal ``s``
+    that is smooth on the scale of the sampling, the ``order``-th difference
+    is dominated by the noise, whose variance it multiplies by
+    ``sum_j C(order, j)^2 = C(2 order, order)`` (70 for order 4). This is the
+    classical difference-based variance estimator; it overestimates the noise
+    when the signal is not well resolved by the sampling. Missing values
+    (NaN) are skipped.
+
+    Returns
+    -------
+    ndarray (n_columns,)
+    """
+    y = np.asarray(y, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    out = np.empty(y.shape[1])
+    for j in range(y.shape[1]):
+        col = y[~np.isnan(y[:, j]), j]
+        if col.size <= order + 5:
+            raise ValueError(
+                f"noise_variance='auto' needs more than {order + 5} observed "
+                f"samples in measured channel {j}; got {col.size}. Give "
+                "noise_variance explicitly."
+            )
+        out[j] = np.mean(np.diff(col, n=order) ** 2) / comb(2 * order, order)
+    return out
+
+
+class MME(BaseDifferentiation):
+    """Minimum model error estimator (a pysindy differentiation method).
+
+    Model ``x' = f(x, u, t) + E d(t)`` where ``E`` holds the identity
+    columns of ``error_states``; measurements ``y_k = g(x(t_k)) + v_k``,
+    ``v_k ~ N(0, R)``. The estimate minimises
+
+    ``J = sum_k r_k^T R^-1 r_k + integral d^T W d dt``,  ``r_k = y_k - g(x_k)``
+
+    with ``d`` held constant between samples (zero-order hold). When called
+    by pysindy (``SINDy(differentiation_method=MME(...)).fit(y, t)``), ``y``
+    holds the measurements only; the full state estimate is stored in
+    ``smoothed_x_``, which pysindy then uses as the state, and the returned
+    array is the model error (``target="error"``), so SINDy identifies the
+    correction to ``f``.
+
+    Parameters
+    ----------
+    assumed_model : callable, pysindy.SINDy or ExtendedModel
+        Vectorised ``f(x, t)`` or ``f(x, t, u)`` with ``x`` of shape
+        ``(n_samples, n_states)``, returning the same shape; or any fitted
+        model with ``predict(x, u=None)``.
+    n_states : int
+        Number of states of the model.
+    measured : sequence of int, optional
+        Indices of the measured states (``y[:, j]`` measures state
+        ``measured[j]``). If none of ``measured``, ``measurement_matrix`` and
+        ``measurement_function`` is given, all states are measured.
+    measurement_matrix : array-like (m, n_states), optional
+        Linear measurement ``y = C x``.
+    measurement_function : callable, optional
+        Nonlinear measurement ``g(x) -> (n_samples, m)``.
+    measurement_jacobian : callable, optional
+        ``dg/dx(x) -> (n_samples, m, n_states)``; central differences if
+        omitted.
+    noise_variance : "auto", float, array-like (m,) or (m, m)
+        Measurement noise: one variance for every channel, one per channel,
+        or a full covariance ``R``. ``"auto"`` estimates a variance per channel
+        from 4th differences of the data (:func:`difference_noise_variance`)
+        and warns with the value.
+    error_states : sequence of int, optional
+        States whose equation has a model error (default: all).
+    W : "auto", "ml", float, array-like (q,) or (q, q)
+        Weight of the model-error integral. ``"auto"`` (the paper): a scalar
+        times the identity chosen so that the mean over measured channels of
+        ``mean(r_j^2) / R_jj`` (generally ``trace(R^-1 S) / m``) equals 1, the
+        covariance constraint. It ignores the degrees of freedom the
+        estimate uses, so it smooths slightly less than optimal. ``"ml"``: a
+        scalar maximising the restricted marginal likelihood of the data
+        (flat prior on ``x_0``, ``d`` white noise of intensity ``W^-1``), the
+        statistically principled choice when ``R`` is known and the model
+        error behaves like white-noise-driven randomness. A number or matrix
+        fixes ``W``.
+    target : {"error", "derivative"}
+        What calling the estimator returns: the model error ``d`` (shape
+        ``(n_samples, n_states)``, zero outside ``error_states``), or the
+        derivative estimate ``f(x_hat) + E d``.
+    u : array-like (n_samples, n_inputs), callable ``u(t)`` or None
+        Known inputs on the sample grid (interpolated linearly between
+        samples) or as a function of time. pysindy does not pass ``u`` to
+        the differentiation method, so it is given here, or to :meth:`fit`
+        (which takes precedence).
+    n_substeps : int, default 1
+        RK4 steps per sample interval in the discretised dynamics.
+    max_iter : int, default 50
+        Gauss-Newton iterations per solve.
+    tol : float, default 1e-8
+        Relative tolerance on the predicted decrease of the cost.
+    verbose : bool, default False
+        Print the W search.
+
+    Attributes
+    ----------
+    t_ : ndarray (n_samples,)
+        Sample times of the last fit.
+    smoothed_x_ : ndarray (n_samples, n_states)
+        State estimate.
+    d_ : ndarray (n_samples, n_states)
+        Model error at the sample times: the mean of the two adjacent
+        zero-order-hold values (the first/last interval's value at the ends);
+        zero in states without model error.
+    d_intervals_ : ndarray (n_samples - 1, q)
+        Model error on each interval ``[t_k, t_{k+1}]`` for the error states.
+    derivative_ : ndarray (n_samples, n_states)
+        ``f(x_hat, t, u) + E d_`` at the sample times.
+    W_ : float or ndarray (q, q)
+        The weight used (a float when it is a scalar multiple of the identity).
+    W_at_bound_ : bool
+        The covariance constraint (or likelihood maximum) could not be met
+        within ``[1e-12, 1e12]`` times the data's reference scale; ``W_`` is
+        the bound.
+    W_history_ : list of (W, value)
+        The W search: covariance ratio ("auto") or ``-2 log p(y|W)`` ("ml").
+    covariance_ratio_ : ndarray (m,)
+        ``mean(r_j^2) / R_jj`` per measured channel (observed samples only).
+    residuals_ : ndarray (n_samples, m)
+        ``y - g(x_hat)``; NaN where ``y`` is missing.
+    noise_variance_ : ndarray (m, m)
+        The noise covariance ``R`` used.
+    cost_ : float
+        ``J`` at the solution.
+    log_likelihood_ : float
+        Restricted log marginal likelihood ``log p(y | W)`` (Laplace
+        approximation for nonlinear models), up to the flat prior on ``x_0``.
+    converged_ : bool
+        Whether the final Gauss-Newton solve (and every solve of the W
+        search) converged.
+    n_iter_ : int
+        Gauss-Newton iterations of the final solve.
+    n_iter_total_ : int
+        Gauss-Newton iterations over the whole fit, W search included.
+    max_defect_ : float
+        Largest dynamics defect of the discretised solution.
+
+    Notes
+    -----
+    pysindy calls the differentiation method once per trajectory; the
+    attributes describe the last call. The previous call's ``W_`` is the
+    starting point of the next W search (this changes speed, not results).
+    Missing measurements (NaN) are allowed when calling :meth:`fit` directly
+    (pysindy's own input checks reject NaN). Irregular sampling is fine.
+
+    Errors: ``ValueError``/``TypeError`` naming the argument for bad input
+    (checked before any long computation), including states that no
+    measurement can see; :class:`~pysindy_mme.smoother.DivergenceError` (a
+    ``FloatingPointError``) if the assumed model blows up between samples;
+    ``ConvergenceWarning`` if Gauss-Newton stops early.
+    """
+
+    def __init__(
+        self,
+        assumed_model,
+        n_states,
+        measured=None,
+        measurement_matrix=None,
+        measurement_function=None,
+        measurement_jacobian=None,
+        noise_variance="auto",
+        error_states=None,
+        W="auto",
+        target="error",
+        u=None,
+        n_substeps=1,
+        max_iter=50,
+        tol=1e-8,
+        verbose=False,
+    ):
+        self.assumed_model = assumed_model
+        self.n_states = n_states
+        self.measured = measured
+        self.measurement_matrix = measurement_matrix
+        self.measurement_function = measurement_function
+        self.measurement_jacobian = measurement_jacobian
+        self.noise_variance = noise_variance
+        self.error_states = error_states
+        self.W = W
+        self.target = target
+        self.u = u
+        self.n_substeps = n_substeps
+        self.max_iter = max_iter
+        self.tol = tol
+        self.verbose = verbose
+
+    # ------------------------------------------------------------- pysindy
+    def _differentiate(self, x, t=1.0):
+        """Fit to the measurements ``x`` and return ``d`` or ``dx/dt``."""
+        self.fit(x, t)
+        return self.d_ if self.target == "error" else self.derivative_
+
+    # ----------------------------------------------------------------- fit
+    def fit(self, y, t=1.0, u=None):
+        """Estimate the states and the model error from measurements.
+
+        Parameters
+        ----------
+        y : array-like (n_samples, m) or (n_samples,)
+            Measurements; NaN marks a missing value.
+        t : float or array-like (n_samples,)
+            Time step or strictly increasing sample times.
+        u : array-like (n_samples, n_inputs), callable or None
+            Inputs; overrides the constructor's ``u``.
+
+        Returns
+        -------
+        self
+        """
+        smoother, W_spec, R, n = self._build(y, t, u)
+        W_ref = self._reference_W(smoother)
+        if isinstance(W_spec, str):
+            res, W_scalar, history, at_bound, n_total, all_conv = self._tune(
+                smoother, W_spec, W_ref
+            )
+            W_out = W_scalar
+        else:
+            res = self._solve(smoother, W_spec, None)
+            history, at_bound = [], False
+            n_total, all_conv = res.n_iter, res.converged
+            W_out = (
+                float(W_spec[0, 0])
+                if np.allclose(W_spec, W_spec[0, 0] * np.eye(W_spec.shape[0]))
+                else W_spec
+            )
+        self._store(smoother, res, R, n, W_out, history, at_bound, n_total, all_conv)
+        return self
+
+    # ---------------------------------------------------------- validation
+    def _build(self, y, t, u):
+        n = self.n_states
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"n_states must be a positive integer, got {n!r}")
+        n = int(n)
+        model = ModelFunction(self.assumed_model, n, name="assumed_model")
+        y = as_float_array(y, "y (the measurements)", ndim=(1, 2), allow_nan=True)
+        if y.ndim == 1:
+            y = y[:, None]
+        N, m = y.shape
+        if N < 3:
+            raise ValueError(f"y (the measurements) needs at least 3 samples, got {N}")
+        t = check_time(t, N, "t")
+        for name in ("max_iter", "n_substeps"):
+            val = getattr(self, name)
+            if isinstance(val, bool) or not isinstance(val, (int, np.integer)):
+                raise TypeError(f"{name} must be a positive integer, got {val!r}")
+            if val < 1:
+                raise ValueError(f"{name} must be a positive integer, got {val}")
+        check_positive_number(self.tol, "tol")
+        if self.target not in ("error", "derivative"):
+            raise ValueError(
+                f"target must be 'error' or 'derivative', got {self.target!r}"
+            )
+
+        # measurement model: exactly one of the three ways
+        given = [
+            name
+            for name in ("measured", "measurement_matrix", "measurement_function")
+            if getattr(self, name) is not None
+        ]
+        if len(given) > 1:
+            raise ValueError(
+                f"give only one of measured, measurement_matrix and "
+                f"measurement_function; got {', '.join(given)}"
+            )
+        g_jac = None
+        if self.measurement_function is not None:
+            if not callable(self.measurement_function):
+                raise TypeError("measurement_function must be callable g(x)")
+            measurement = self.measurement_function
+            if self.measurement_jacobian is not None:
+                if not callable(self.measurement_jacobian):
+                    raise TypeError("measurement_jacobian must be callable")
+                g_jac = self.measurement_jacobian
+        elif self.measurement_matrix is not None:
+            C = as_float_array(self.measurement_matrix, "measurement_matrix", ndim=2)
+            if C.shape[1] != n:
+                raise ValueError(
+                    f"measurement_matrix must have n_states = {n} columns, got "
+                    f"shape {C.shape}"
+                )
+            measurement = C
+        else:
+            if self.measured is None:
+                idx = np.arange(n)
+            else:
+                idx = check_indices(self.measured, n, "measured")
+            measurement = np.eye(n)[idx]
+        if not callable(measurement) and measurement.shape[0] != m:
+            raise ValueError(
+                f"y (the measurements) has {m} column(s) but the measurement model "
+                f"gives {measurement.shape[0]} (measured / measurement_matrix)"
+            )
+
+        R = self._noise(y, m)
+        es = (
+            np.arange(n)
+            if self.error_states is None
+            else check_indices(self.error_states, n, "error_states")
+        )
+        W_spec = self._W_spec(es.size)
+
+        u = self.u if u is None else u
+        if u is not None and not callable(u):
+            u = as_float_array(u, "u", ndim=(1, 2))
+            if u.ndim == 1:
+                u = u[:, None]
+            if u.shape[0] != N:
+                raise ValueError(
+                    f"u has {u.shape[0]} rows but y has {N} samples; give u on "
+                    "the sample grid"
+                )
+        if (
+            u is not None
+            and model._kind == "callable"
+            and not getattr(model, "_takes_u", False)
+        ):
+            raise ValueError(
+                "u was given but assumed_model takes no input: define it as f(x, t, u)"
+            )
+
+        smoother = MMESmoother(
+            model,
+            y,
+            t,
+            R,
+            es,
+            measurement,
+            measurement_jacobian=g_jac,
+            u=u,
+            n_substeps=int(self.n_substeps),
+            max_iter=int(self.max_iter),
+            tol=float(self.tol),
+        )
+        x0, _ = smoother.initial_guess()
+        if callable(measurement):
+            try:
+                gx = np.asarray(measurement(x0), dtype=float)
+            except Exception as exc:
+                raise ValueError(
+                    f"measurement_function failed on x of shape {x0.shape}: {exc}"
+                ) from exc
+            if gx.shape != (N, m):
+                raise ValueError(
+                    f"measurement_function returned shape {gx.shape} for x of "
+                    f"shape {x0.shape}; expected {(N, m)} to match y"
+                )
+            check_finite(gx, "measurement_function output")
+        # First evaluation of the model: shape and finiteness.
+        ug = smoother.u_grid()
+        try:
+            model.check(x0, t, ug)
+        except ValueError:
+            raise
+        except Exception as exc:
+            raise ValueError(
+                f"assumed_model failed on its first evaluation (x of shape "
+                f"{x0.shape}): {type(exc).__name__}: {exc}"
+            ) from exc
+        if callable(measurement):
+            Hpat = np.abs(smoother._measurement_jacobian(x0)).max(axis=0) > 0
+        else:
+            Hpat = measurement != 0
+        hidden = unobservable_states(model, x0, t, ug, Hpat)
+        if hidden:
+            bad_err = [i for i in hidden if i in set(es.tolist())]
+            what = (
+                f"error_states {bad_err} cannot be seen in the measurements"
+                if bad_err
+                else f"states {hidden} cannot be seen in the measurements"
+            )
+            raise ValueError(
+                f"{what}: no measured quantity depends on them, directly or "
+                f"through the assumed model, so their initial value and model "
+                f"error are undetermined (states {hidden} are unobservable). "
+                "Measure them (measured / measurement_matrix) or change the model."
+            )
+        return smoother, W_spec, R, n
+
+    def _noise(self, y, m):
+        nv = self.noise_variance
+        if isinstance(nv, str):
+            if nv != "auto":
+                raise ValueError(
+                    f"noise_variance must be 'auto', a number, a vector or a "
+                    f"matrix; got {nv!r}"
+                )
+            var = difference_noise_variance(y)
+            if np.any(var <= 0):
+                raise ValueError(
+                    "noise_variance='auto' estimated a zero noise variance (the "
+                    "data look noise-free or quantised); give noise_variance"
+                )
+            warnings.warn(
+                "noise_variance='auto': estimated the measurement noise variance "
+                f"from 4th differences of the data as {np.round(var, 6).tolist()}; "
+                "give noise_variance if it is known",
+                UserWarning,
+                stacklevel=4,
+            )
+            return np.diag(var)
+        arr = as_float_array(nv, "noise_variance", ndim=(0, 1, 2))
+        if arr.ndim == 0:
+            check_positive_number(float(arr), "noise_variance")
+            return float(arr) * np.eye(m)
+        if arr.ndim == 1:
+            if arr.size != m:
+                raise ValueError(
+                    f"noise_variance has {arr.size} entries but there are {m} "
+                    "measured channels"
+                )
+            if np.any(arr <= 0):
+                raise ValueError(f"noise_variance must be positive, got {arr.tolist()}")
+            return np.diag(arr)
+        if arr.shape != (m, m):
+            raise ValueError(
+                f"noise_variance must be ({m}, {m}) for {m} measured channels, "
+                f"got shape {arr.shape}"
+            )
+        if not np.allclose(arr, arr.T):
+            raise ValueError("noise_variance (covariance R) must be symmetric")
+        try:
+            np.linalg.cholesky(arr)
+        except np.linalg.LinAlgError:
+            raise ValueError(
+                "noise_variance (covariance R) must be positive definite"
+            ) from None
+        return arr
+
+    def _W_spec(self, q):
+        W = self.W
+        if isinstance(W, str):
+            if W not in ("auto", "ml"):
+                raise ValueError(
+                    f"W must be 'auto', 'ml', a positive number or a positive "
+                    f"definite (q, q) matrix; got {W!r}"
+                )
+            return W
+        arr = as_float_array(W, "W", ndim=(0, 1, 2))
+        if arr.ndim == 0:
+            check_positive_number(float(arr), "W")
+            return float(arr) * np.eye(q)
+        if arr.ndim == 1:
+            if arr.size != q or np.any(arr <= 0):
+                raise ValueError(
+                    f"W as a vector must hold {q} positive weights (one per "
+                    f"error state), got {arr.tolist()}"
+                )
+            return np.diag(arr)
+        if arr.shape != (q, q):
+            raise ValueError(f"W must be ({q}, {q}) for {q} error states")
+        try:
+            np.linalg.cholesky(0.5 * (arr + arr.T))
+        except np.linalg.LinAlgError:
+            raise ValueError("W must be positive definite") from None
+        return 0.5 * (arr + arr.T)
+
+    # ------------------------------------------------------------- solving
+    @staticmethod
+    def _reference_W(smoother):
+        """A scale for W from the data: record length / variance of y.
+
+        ``W`` has units of time / state^2; the search range is
+        ``10**+-12`` times this reference.
+        """
+        T = smoother.t[-1] - smoother.t[0]
+        var = np.nanvar(smoother.y, axis=0)
+        var = float(np.mean(var[np.isfinite(var)])) if np.isfinite(var).any() else 1
+        return T / var if var > 0 else T
+
+    def _solve(self, smoother, W, start):
+        try:
+            return smoother.solve(W, start)
+        except DivergenceError:
+            raise
+        except np.linalg.LinAlgError as exc:
+            raise ValueError(
+                f"{exc}. Check measured / measurement_matrix and error_states."
+            ) from None
+
+    def _tune(self, smoother, mode, W_ref):
+        """Scalar W by the covariance constraint ("auto") or ML ("ml").
+
+        Every solve is warm-started from the previous one. Only the latest
+        full solution is kept (a solution holds O(N) arrays).
+        """
+        q = smoother.q
+        lo = np.log(W_ref) - _W_DECADES * np.log(10.0)
+        hi = np.log(W_ref) + _W_DECADES * np.log(10.0)
+        guess = getattr(self, "_W_guess", None)
+        l0 = np.log(guess) if guess is not None and lo < np.log(guess) < hi else None
+        l0 = np.log(W_ref) if l0 is None else l0
+        values = {}
+        state = {"last": None, "last_logw": None, "n_iter": 0, "conv": True}
+
+        def run(logw):
+            if state["last_logw"] == logw:
+                return state["last"]
+            res = self._solve(smoother, np.exp(logw) * np.eye(q), state["last"])
+            state.update(last=res, last_logw=logw)
+            state["n_iter"] += res.n_iter
+            state["conv"] &= res.converged
+            return res
+
+        def criterion(logw):
+            if logw not in values:
+                res = run(logw)
+                if mode == "ml":
+                    values[logw] = res.neg2_log_likelihood
+                else:
+                    values[logw] = self._overall_ratio(res, smoother)
+                if self.verbose:
+                    name = "-2 log p" if mode == "ml" else "ratio"
+                    print(f"MME: W = {np.exp(logw):.6g}, {name} = {values[logw]:.6g}")
+            return values[logw]
+
+        step = np.log(10.0)
+        at_bound = False
+        if mode == "auto":
+            g = lambda lw: criterion(lw) - 1.0  # noqa: E731
+            a = b = l0
+            ga = gb = g(a)
+            direction = 1.0 if ga < 0 else -1.0
+            # the ratio increases with W: expand until the sign changes
+            while np.sign(ga) == np.sign(gb):
+                nxt = float(np.clip(b + direction * step, lo, hi))
+                if nxt == b:
+                    at_bound = True
+                    break
+                a, ga = b, gb
+                b = nxt
+                gb = g(b)
+            if at_bound:
+                best = b
+                warnings.warn(
+                    "W='auto': the covariance constraint cannot be met for W in "
+                    f"[{np.exp(lo):.3g}, {np.exp(hi):.3g}]: the covariance ratio "
+                    f"stays {'below' if gb < 0 else 'above'} 1 ({gb + 1:.4g} at "
+                    f"W = {np.exp(b):.3g}). "
+                    + (
+                        "The assumed model alone fits the data to within the "
+                        "noise, or noise_variance is too large."
+                        if gb < 0
+                        else "The data cannot be fitted to within the noise: "
+                        "noise_variance is too small."
+                    ),
+                    UserWarning,
+                    stacklevel=4,
+                )
+            else:
+                best = brentq(g, min(a, b), max(a, b), xtol=1e-4)
+        else:
+            left, mid, right = l0 - step, l0, l0 + step
+            fl, fm, fr = criterion(left), criterion(mid), criterion(right)
+            # walk downhill until the minimum is bracketed
+            while not (fm <= fl and fm <= fr):
+                if fl < fr:
+                    right, fr, mid, fm = mid, fm, left, fl
+                    left = max(left - step, lo)
+                    if left == mid:
+                        at_bound = True
+                        break
+                    fl = criterion(left)
+                else:
+                    left, fl, mid, fm = mid, fm, right, fr
+                    right = min(right + step, hi)
+                    if right == mid:
+                        at_bound = True
+                        break
+                    fr = criterion(right)
+            if at_bound:
+                best = mid
+                warnings.warn(
+                    "W='ml': the marginal likelihood has no maximum for W in "
+                    f"[{np.exp(lo):.3g}, {np.exp(hi):.3g}]; using the bound "
+                    f"W = {np.exp(mid):.3g}",
+                    UserWarning,
+                    stacklevel=4,
+                )
+            else:
+                opt = minimize_scalar(
+                    criterion,
+                    bounds=(left, right),
+                    method="bounded",
+                    options={"xatol": 1e-3},
+                )
+                best = float(opt.x) if opt.fun <= fm else mid
+        res = run(best)
+        history = sorted((float(np.exp(k)), float(v)) for k, v in values.items())
+        self._W_guess = float(np.exp(best))
+        return (
+            res,
+            float(np.exp(best)),
+            history,
+            at_bound,
+            state["n_iter"],
+            state["conv"],
+        )
+
+    @staticmethod
+    def _channel_ratios(res, smoother):
+        r = res.residuals
+        ms = np.nanmean(r**2, axis=0)
+        return ms / np.diag(smoother.R)
+
+    @staticmethod
+    def _overall_ratio(res, smoother):
+        """``trace(R^-1 S) / m`` with ``S`` the residual second-moment matrix."""
+        r0 = np.where(smoother.mask, res.residuals, 0.0)
+        counts = smoother.mask.T.astype(float) @ smoother.mask.astype(float)
+        S = (r0.T @ r0) / np.maximum(counts, 1.0)
+        return float(np.trace(np.linalg.solve(smoother.R, S)) / smoother.m)
+
+    # -------------------------------------------------------------- output
+    def _store(self, smoother, res, R, n, W_out, history, at_bound, n_total, conv):
+        N = smoother.N
+        es = smoother.es
+        d_int = res.d
+        d_grid = np.empty((N, smoother.q))
+        d_grid[1:-1] = 0.5 * (d_int[1:] + d_int[:-1])
+        d_grid[0] = d_int[0]
+        d_grid[-1] = d_int[-1]
+        d_full = np.zeros((N, n))
+        d_full[:, es] = d_grid
+        self.t_ = smoother.t.copy()
+        self.smoothed_x_ = res.x
+        self.d_ = d_full
+        self.d_intervals_ = d_int
+        self.derivative_ = smoother.model(res.x, smoother.t, smoother.u_grid()) + d_full
+        self.W_ = W_out
+        self.W_at_bound_ = bool(at_bound)
+        self.W_history_ = history
+        self.covariance_ratio_ = self._channel_ratios(res, smoother)
+        self.residuals_ = res.residuals
+        self.noise_variance_ = R
+        self.cost_ = res.cost
+        self.log_likelihood_ = -0.5 * res.neg2_log_likelihood
+        self.n_iter_ = res.n_iter
+        self.n_iter_total_ = int(n_total)
+        self.max_defect_ = res.max_defect
+        self.converged_ = bool(res.converged and conv)
+        if not self.converged_:
+            warnings.warn(
+                "MME: Gauss-Newton did not converge "
+                f"({res.message if not res.converged else 'during the W search'}"
+                f"; {res.n_iter} iterations, max_iter = {self.max_iter}); the "
+                "estimate may be inaccurate. Increase max_iter or check the "
+                "assumed model.",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
