@@ -209,9 +209,7 @@ class AnovaTable:
             self.partial_f,
             self.p_values,
         ):
-            lines.append(
-                f"  {name(j):<20}{num(c, 14)}{num(se)}{num(f)}{num(p)}"
-            )
+            lines.append(f"  {name(j):<20}{num(c, 14)}{num(se)}{num(f)}{num(p)}")
         if self.has_intercept:
             lines.append(
                 f"  {'(intercept)':<20}{num(self.intercept, 14)}"
@@ -223,7 +221,9 @@ class AnovaTable:
         lines += ["", "  Functions not in the model (strongest)"]
         if len(self.out_features):
             lines.append(f"  {'function':<20}{'partial F':>14}{'p-value':>12}")
-            for j, f, p in zip(self.out_features, self.out_partial_f, self.out_p_values):
+            for j, f, p in zip(
+                self.out_features, self.out_partial_f, self.out_p_values
+            ):
                 lines.append(f"  {name(j):<20}{num(f, 14)}{num(p)}")
         else:
             lines.append("  (none assessed)")
@@ -301,7 +301,9 @@ def fit_anova(
         raise ValueError(f"support {support} repeats a column")
     if isinstance(candidates, str):
         if candidates != "all":
-            raise ValueError(f'candidates must be "all", None or indices, got {candidates!r}')
+            raise ValueError(
+                f'candidates must be "all", None or indices, got {candidates!r}'
+            )
         chosen = set(support)
         candidates = [j for j in range(X.shape[1]) if j not in chosen]
     elif candidates is None:
@@ -381,7 +383,9 @@ def fit_anova(
         out_f = np.where(
             ok, _safe_ratio(red * (dof_res - 1), np.maximum(ss_res - red, 0.0)), np.nan
         )
-    out_p = np.atleast_1d(f_pvalue(out_f, 1, dof_res - 1)) if candidates else np.zeros(0)
+    out_p = (
+        np.atleast_1d(f_pvalue(out_f, 1, dof_res - 1)) if candidates else np.zeros(0)
+    )
 
     off = 1 if intercept else 0
     return AnovaTable(

@@ -251,6 +251,7 @@ class _Path:
         self.e = yw - self.Q[:, 0] * self.z[0]
         self.e -= self.Q[:, 0] * (self.Q[:, 0] @ self.e)
         self.floor2 = (_EXACT_FIT_RTOL * float(np.linalg.norm(yw))) ** 2
+        self.sst = self.sse()  # centred total sum of squares
         self.nr2 = self.cnorm2.copy()
         self.g = self.R.T @ self.e
 
@@ -267,6 +268,14 @@ class _Path:
     def coefficients(self) -> np.ndarray:
         """Least-squares coefficients of ``[constant, support...]``."""
         return scipy.linalg.solve_triangular(self.T, self.z)
+
+    def overall_f(self) -> float:
+        """Model F-ratio MSR / MSE (eq. 10); 0 for the constant-only model."""
+        k = self.k
+        if k == 0:
+            return 0.0
+        sse = self.sse()
+        return float(_safe_div((self.sst - sse) / k, sse / (self.n_eff - k - 1)))
 
     def in_model_f(self) -> np.ndarray:
         """Partial F-ratios (eq. 20) of ``[constant, support...]``: ``t**2``."""
@@ -554,7 +563,9 @@ class FloatingFStepwise(BaseOptimizer):
             )
         for name in ("floating", "drop_insignificant_constant"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise TypeError(f"{name} must be True or False, got {getattr(self, name)!r}")
+                raise TypeError(
+                    f"{name} must be True or False, got {getattr(self, name)!r}"
+                )
         float_ratio = check_positive_number(
             self.float_ratio, "float_ratio", minimum=1.0, strict=False
         )
@@ -760,13 +771,21 @@ class FloatingFStepwise(BaseOptimizer):
         """Phases I and II for one target; returns the steps taken."""
         steps = []
         phase = 1
-        visited = {(1, frozenset())}
+        start = (1, frozenset())
+        visited = {start}
+        trail = [start]  # states in the order visited
+        trail_f = [0.0]  # their overall F-ratios
+        goal = None  # after a cycle: the state of the cycle to stop at
+        replay_left = 0
         cols = path.cols
         while True:
             k = path.k
             enter_thr, remove_thr = self._thresholds(k, n_eff, params)
             f_in = path.in_model_f()[1:] if k else np.zeros(0)
-            if phase == 2 and k:
+            # At an exact fit (noise-free target) every partial F-ratio is
+            # infinite in principle; rounding-level values cannot be ranked,
+            # so the floating threshold does not apply.
+            if phase == 2 and k and not path.exact_fit():
                 floating = float(np.max(f_in)) / params["float_ratio"]
                 enter_thr = max(enter_thr, floating)
                 remove_thr = max(remove_thr, floating)
@@ -784,7 +803,10 @@ class FloatingFStepwise(BaseOptimizer):
             if action is None:
                 if phase == 1 and self.floating:
                     phase = 2
-                    visited.add((2, frozenset(path.support)))
+                    key = (2, frozenset(path.support))
+                    visited.add(key)
+                    trail.append(key)
+                    trail_f.append(path.overall_f())
                     continue
                 break
             if len(steps) >= self.max_iter:
@@ -799,6 +821,9 @@ class FloatingFStepwise(BaseOptimizer):
             kind, pos, fval, thr = action
             if kind == "add":
                 path.add(pos)
+                # Same value as the F of entry, but free of the cancellation in
+                # SSE_old - reduction when the new term explains nearly all.
+                fval = float(path.in_model_f()[-1])
             else:
                 path.remove(pos)
             feature = int(cols[pos])
@@ -816,17 +841,36 @@ class FloatingFStepwise(BaseOptimizer):
             )
             self._record_history(path, target, coef)
             key = (phase, frozenset(path.support))
+            if goal is not None:
+                # Replaying the cycle (decisions depend only on the state).
+                replay_left -= 1
+                if key == goal or replay_left <= 0:
+                    break
+                continue
             if key in visited:
+                # A cycle: the rules alone would go round forever. Of the
+                # models in the cycle keep the one with the largest overall
+                # F-ratio (the paper reads a rising model F-ratio as a better
+                # representation), reached by replaying the cycle.
                 self.cycle_detected_ = True
+                first = trail.index(key)
+                cycle, cycle_f = trail[first:], trail_f[first:]
+                goal = cycle[int(np.argmax(cycle_f))]
                 warnings.warn(
                     f"FloatingFStepwise returned to a model it had already visited "
-                    f"(target {target}, phase {phase}, iteration {len(steps)}); "
-                    "stopping there",
+                    f"(target {target}, phase {phase}, iteration {len(steps)}): a "
+                    f"cycle of {len(cycle)} models; stopping at the one with the "
+                    "largest overall F-ratio",
                     StepwiseCycleWarning,
                     stacklevel=3,
                 )
-                break
+                if goal == key:
+                    break
+                replay_left = len(cycle)
+                continue
             visited.add(key)
+            trail.append(key)
+            trail_f.append(path.overall_f())
         return steps
 
     def _record_history(self, path: _Path, target: int, coef) -> None:
