@@ -208,6 +208,7 @@ class AnovaTable:
             self.std_errors,
             self.partial_f,
             self.p_values,
+            strict=True,
         ):
             lines.append(f"  {name(j):<20}{num(c, 14)}{num(se)}{num(f)}{num(p)}")
         if self.has_intercept:
@@ -222,7 +223,7 @@ class AnovaTable:
         if len(self.out_features):
             lines.append(f"  {'function':<20}{'partial F':>14}{'p-value':>12}")
             for j, f, p in zip(
-                self.out_features, self.out_partial_f, self.out_p_values
+                self.out_features, self.out_partial_f, self.out_p_values, strict=True
             ):
                 lines.append(f"  {name(j):<20}{num(f, 14)}{num(p)}")
         else:

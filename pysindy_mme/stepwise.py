@@ -56,7 +56,7 @@ class StepwiseCycleWarning(UserWarning):
 
 
 class ExcludedFeaturesWarning(UserWarning):
-    """Some library columns can never be selected (non-finite, constant, duplicate...)."""
+    """Some library columns can never be selected (non-finite, constant, ...)."""
 
 
 @dataclass(frozen=True)
@@ -1015,8 +1015,9 @@ class FloatingFStepwise(BaseOptimizer):
             )
             if self.intercept_dropped_[t]:
                 out.append(
-                    f"  Note: the intercept's partial F ({table.intercept_partial_f:.4g})"
-                    " is below the removal threshold; coef_ is refit through the origin."
+                    "  Note: the intercept's partial F "
+                    f"({table.intercept_partial_f:.4g}) is below the removal "
+                    "threshold; coef_ is refit through the origin."
                 )
             out.append("")
             out.append("  Step history")

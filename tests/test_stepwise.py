@@ -369,13 +369,13 @@ def _exact_lstsq(A, y):
     k = A.shape[1]
     M = [
         [sum(r[p] * r[q] for r in F) for q in range(k)]
-        + [sum(r[p] * yy for r, yy in zip(F, Y))]
+        + [sum(r[p] * yy for r, yy in zip(F, Y, strict=True))]
         for p in range(k)
     ]
     for col in range(k):
         for row in range(col + 1, k):
             f = M[row][col] / M[col][col]
-            M[row] = [a - f * b for a, b in zip(M[row], M[col])]
+            M[row] = [a - f * b for a, b in zip(M[row], M[col], strict=True)]
     sol = [Fraction(0)] * k
     for row in reversed(range(k)):
         acc = M[row][k] - sum(M[row][j] * sol[j] for j in range(row + 1, k))
