@@ -902,16 +902,24 @@ class FloatingFStepwise(BaseOptimizer):
             tolerance=params["tolerance"],
         )
         row = np.zeros(x.shape[1])
-        _, remove_thr = self._thresholds(len(support), n_eff, params)
-        dropped = bool(
-            self.drop_insignificant_constant
-            and not table.intercept_partial_f >= remove_thr
+        sw = np.sqrt(w)
+        origin = (
+            lstsq_refined(x[:, support] * sw[:, None], y * sw)
+            if support.size
+            else np.zeros(0)
         )
+        if path.exact_fit():
+            # Noise-free target: the constant's t**2 is a ratio of rounding
+            # errors. It is needed only if the fit without it is not exact.
+            resid = y * sw - (x[:, support] * sw[:, None]) @ origin
+            insignificant = float(resid @ resid) <= path.floor2
+        else:
+            _, remove_thr = self._thresholds(len(support), n_eff, params)
+            insignificant = not table.intercept_partial_f >= remove_thr
+        dropped = bool(self.drop_insignificant_constant and insignificant)
         if dropped:
             icpt = 0.0
-            if support.size:
-                sw = np.sqrt(w)
-                row[support] = lstsq_refined(x[:, support] * sw[:, None], y * sw)
+            row[support] = origin
         else:
             icpt = table.intercept
             row[support] = table.coefficients
