@@ -1,0 +1,132 @@
+"""Exact support recovery: FloatingFStepwise against pysindy's STLSQ.
+
+Noisy full-state measurements of three systems, two noise levels each, 20
+seeds, pysindy's ``SmoothedFiniteDifference`` and ``PolynomialLibrary(degree=3)``,
+both optimizers with default settings. A fit counts when every equation has
+exactly the terms of the true right-hand side (the true support is read off
+the true model by an exact least-squares fit on random points, independent of
+either optimizer).
+
+Findings these tests pin down (counts are printed; run with ``-s`` or ``-rA``):
+
+* Phase I alone (Draper & Smith's stepwise regression, ``floating=False``)
+  recovers the support at least as often as STLSQ in every case.
+* The default (Phase II with the paper's ``float_ratio=10``) matches or beats
+  STLSQ on the paper's Van der Pol example, but on Duffing and Lorenz it
+  removes one true term in every run: a term whose partial F-ratio, though
+  large (Lorenz ``-x2`` in ``x2'``: F ~ 1e3), is below a tenth of the
+  strongest term's (~3e5). Duffing's damping ``-0.1 x2`` likewise. Those
+  cases are strict xfails: they document the behaviour of the paper's rule
+  and fail loudly if it changes.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pysindy as ps
+import pytest
+
+from pysindy_mme import FloatingFStepwise, systems
+
+N_SEEDS = 20
+
+PHASE_TWO_LOSS = (
+    "Phase II with float_ratio=10 removes a true term whose partial F is below "
+    "1/10 of the strongest (Duffing's -0.1 x2, Lorenz's -x2 in x2')"
+)
+
+CASES = [
+    ("van_der_pol", 0.1),
+    ("van_der_pol", 0.01),
+    ("duffing", 0.01),
+    ("duffing", 0.001),
+    ("lorenz", 0.1),
+    ("lorenz", 0.01),
+]
+
+OPTIMIZERS = {
+    "STLSQ": ps.STLSQ,
+    "FloatingFStepwise": FloatingFStepwise,
+    "Phase I only": lambda: FloatingFStepwise(floating=False),
+}
+
+
+def true_support(system) -> np.ndarray:
+    points = np.random.default_rng(0).standard_normal((300, system.n_states)) * 3
+    library = ps.PolynomialLibrary(degree=3).fit(points)
+    exact = np.linalg.lstsq(
+        library.transform(points), system.true_model(points, 0.0), rcond=None
+    )[0].T
+    return np.abs(exact) > 1e-8
+
+
+@pytest.fixture(scope="module")
+def counts():
+    """{(system, noise): {optimizer: exact-support count over the seeds}}."""
+    results = {}
+    for name, noise in CASES:
+        system = getattr(systems, name)()
+        support = true_support(system)
+        hits = dict.fromkeys(OPTIMIZERS, 0)
+        for seed in range(N_SEEDS):
+            m = system.measure(seed, noise_variance=noise, full_state=True)
+            for label, make in OPTIMIZERS.items():
+                model = ps.SINDy(
+                    optimizer=make(),
+                    feature_library=ps.PolynomialLibrary(degree=3),
+                    differentiation_method=ps.SmoothedFiniteDifference(),
+                )
+                with warnings.catch_warnings():
+                    # Lorenz's x3' equation meets a Phase II 2-cycle (resolved,
+                    # tested elsewhere); STLSQ may warn too.
+                    warnings.simplefilter("ignore")
+                    model.fit(m.y, t=m.t)
+                found = model.coefficients() != 0
+                hits[label] += int(np.array_equal(found, support))
+        results[(name, noise)] = hits
+    return results
+
+
+def report(case, hits):
+    ours, theirs = hits["FloatingFStepwise"], hits["STLSQ"]
+    print(
+        f"\n{case[0]} noise var {case[1]:g} ({N_SEEDS} seeds): "
+        f"STLSQ {theirs}/{N_SEEDS}, FloatingFStepwise {ours}/{N_SEEDS} "
+        f"(difference {ours - theirs:+d}), Phase I only "
+        f"{hits['Phase I only']}/{N_SEEDS}"
+    )
+
+
+def _mark(case):
+    if case[0] in ("duffing", "lorenz"):
+        return pytest.param(
+            case, marks=pytest.mark.xfail(strict=True, reason=PHASE_TWO_LOSS)
+        )
+    return case
+
+
+@pytest.mark.parametrize(
+    "case", [_mark(c) for c in CASES], ids=lambda c: f"{c[0]}-{c[1]}"
+)
+def test_default_recovers_support_as_often_as_stlsq(counts, case):
+    hits = counts[case]
+    report(case, hits)
+    assert hits["FloatingFStepwise"] >= hits["STLSQ"]
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: f"{c[0]}-{c[1]}")
+def test_phase_one_recovers_support_as_often_as_stlsq(counts, case):
+    hits = counts[case]
+    report(case, hits)
+    assert hits["Phase I only"] >= hits["STLSQ"]
+
+
+def test_paper_example_stlsq_reference_count(counts):
+    # The brief's reference point: STLSQ finds Van der Pol's support in 19/20
+    # runs at noise variance 0.01; FloatingFStepwise in all of them.
+    hits = counts[("van_der_pol", 0.01)]
+    report(("van_der_pol", 0.01), hits)
+    assert hits["STLSQ"] == 19
+    assert hits["FloatingFStepwise"] == N_SEEDS
