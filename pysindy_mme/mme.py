@@ -20,7 +20,7 @@ from pysindy.differentiation import BaseDifferentiation
 from scipy.optimize import brentq, minimize_scalar
 from sklearn.exceptions import ConvergenceWarning
 
-from ._model import ModelFunction
+from ._model import as_model_function
 from ._validation import (
     as_float_array,
     check_finite,
@@ -278,7 +278,12 @@ class MME(BaseDifferentiation):
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"n_states must be a positive integer, got {n!r}")
         n = int(n)
-        model = ModelFunction(self.assumed_model, n, name="assumed_model")
+        model = as_model_function(self.assumed_model, n, name="assumed_model")
+        if model.n_states != n:
+            raise ValueError(
+                f"assumed_model is a ModelFunction for {model.n_states} states but "
+                f"n_states = {n}"
+            )
         y = as_float_array(y, "y (the measurements)", ndim=(1, 2), allow_nan=True)
         if y.ndim == 1:
             y = y[:, None]
@@ -504,15 +509,16 @@ class MME(BaseDifferentiation):
     # ------------------------------------------------------------- solving
     @staticmethod
     def _reference_W(smoother):
-        """A scale for W from the data: record length / variance of y.
+        """A scale for W: mean sample interval / mean noise variance.
 
-        ``W`` has units of time / state^2; the search range is
-        ``10**+-12`` times this reference.
+        Per interval the cost weighs ``h W d^2`` against ``r^2 / R``, so
+        ``h / R`` is the weight at which a model error of one measurement
+        unit per time unit costs as much as a one-sigma residual. It does not
+        grow with the record length. The search range is ``10**+-12`` times
+        this reference.
         """
-        T = smoother.t[-1] - smoother.t[0]
-        var = np.nanvar(smoother.y, axis=0)
-        var = float(np.mean(var[np.isfinite(var)])) if np.isfinite(var).any() else 1
-        return T / var if var > 0 else T
+        h = float(np.mean(smoother.h))
+        return h / float(np.mean(np.diag(smoother.R)))
 
     def _solve(self, smoother, W, start):
         try:

@@ -199,6 +199,7 @@ class MMESmoother:
         self._Eb[self.es, self.n + np.arange(self.q)] = 1.0
         self.x_init = None if x_init is None else np.asarray(x_init, dtype=float)
         self._scale = None
+        self._HRQ = None
 
     # ------------------------------------------------------------------ setup
     def _set_noise(self, R):
@@ -395,31 +396,33 @@ class MMESmoother:
         kl = ku = 2 * n - 1
         ldab = 2 * kl + ku + 1
         diag = kl + ku
-        abT = np.zeros((N, 2 * n, ldab))
         H = lin.H
-        sub = "ai,kab->kib" if H.ndim == 2 else "kai,kab->kib"
-        HR = np.einsum(sub, H, self.Rinv)  # H^T Rinv
-        Q = HR @ H
+        if H.ndim == 2:
+            # linear measurement: H^T R^-1 and H^T R^-1 H never change
+            if self._HRQ is None:
+                HR = np.einsum("ai,kab->kib", H, self.Rinv)
+                self._HRQ = (HR, HR @ H)
+            HR, Q = self._HRQ
+        else:
+            HR = np.einsum("kai,kab->kib", H, self.Rinv)  # H^T Rinv
+            Q = HR @ H
         G = lin.G
         GW = G @ Winv  # (N-1, n, q)
         S = (GW @ np.swapaxes(G, 1, 2)) / self.h[:, None, None]
         A = lin.A
-        for a in range(n):
-            for b in range(n):
-                # (x_k, x_k): Q
-                abT[:, b, diag + a - b] = Q[:, a, b]
-                # (x_k row a, lam_k col b): A_k[b, a]
-                abT[:-1, n + b, diag + a - (n + b)] = A[:, b, a]
-                # (lam_k row a, x_k col b): A_k[a, b]
-                abT[:-1, b, diag + (n + a) - b] = A[:, a, b]
-                # (lam_k, lam_k): -S
-                abT[:-1, n + b, diag + a - b] = -S[:, a, b]
-            # (lam_k row a, x_{k+1} col a): -1
-            abT[1:, a, diag - n] = -1.0
-            # (x_{k+1} row a, lam_k col a): -1
-            abT[:-1, n + a, diag + n] = -1.0
-            # dummy multiplier of the last block
-            abT[-1, n + a, diag] = 1.0
+        # Column b of block k holds, from row offset diag - b: the entries of
+        # rows x_k (Q_k[:, b]) and lam_k (A_k[:, b]); column n + b (lam_k's)
+        # holds rows x_k (A_k^T) and lam_k (-S_k), and x_{k+1}'s -1 below.
+        abT = np.zeros((N, 2 * n, ldab))
+        for b in range(n):
+            abT[:, b, diag - b : diag - b + n] = Q[:, :, b]
+            abT[:-1, b, diag + n - b : diag + 2 * n - b] = A[:, :, b]
+            abT[:-1, n + b, diag - n - b : diag - b] = A[:, b, :]
+            abT[:-1, n + b, diag - b : diag - b + n] = -S[:, :, b]
+            # (lam_k row b, x_{k+1} col b) and (x_{k+1} row b, lam_k col b)
+            abT[1:, b, diag - n] = -1.0
+            abT[:-1, n + b, diag + n] = -1.0
+            abT[-1, n + b, diag] = 1.0  # dummy multiplier of the last block
         ab = abT.reshape(N * 2 * n, ldab).T
         lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
         if info < 0:  # pragma: no cover - a bug, not a user error
@@ -482,6 +485,7 @@ class MMESmoother:
                     "the estimation problem is singular: the states are not all "
                     "observable from the measurements, so the initial state (no "
                     "prior is used) or the model error is undetermined"
+                    + self._describe_unobservable(lin)
                 ) from None
             dd = d_new - d
             if not (np.isfinite(dx).all() and np.isfinite(dd).all()):
@@ -560,6 +564,40 @@ class MMESmoother:
             max_defect=max_defect,
             message=message,
             _lin=lin,
+        )
+
+    def _describe_unobservable(self, lin, max_steps: int = 400) -> str:
+        """Name the initial-state directions no measurement sees (for errors).
+
+        Stacks ``H_k Phi(k, 0)`` (the linearised sensitivity of the k-th
+        measurement to ``x_0``) over the first samples and reports the right
+        singular vectors with negligible singular values.
+        """
+        K = min(self.N, max_steps)
+        rows = []
+        P = np.eye(self.n)
+        for k in range(K):
+            Hk = lin.H if lin.H.ndim == 2 else lin.H[k]
+            rows.append(Hk[self.mask[k]] @ P)
+            if k < self.N - 1:
+                P = lin.A[k] @ P
+        O = np.vstack(rows) if rows else np.zeros((0, self.n))
+        if O.shape[0] == 0:
+            return ": nothing is measured"
+        _, sv, vt = np.linalg.svd(O, full_matrices=True)
+        sv = np.concatenate([sv, np.zeros(self.n - sv.size)])
+        null = vt[sv <= 1e-8 * max(sv.max(), 1e-300)]
+        if null.shape[0] == 0:
+            return ""
+        parts = []
+        for v in null:
+            v = v / np.max(np.abs(v))
+            terms = [f"{c:+.3g} x{j}" for j, c in enumerate(v) if abs(c) > 1e-6]
+            parts.append(" ".join(terms))
+        return (
+            "; the measurements do not see the initial-state direction(s) "
+            + "; ".join(f"[{p}]" for p in parts)
+            + " (state indices from 0)"
         )
 
     def _apply_R_H(self, lin, dx):

@@ -1,0 +1,464 @@
+"""MME: the paper's Van der Pol study, nonlinear models, pysindy, bad input.
+
+The solver itself is checked against independent references in
+``test_smoother.py``; here the estimator is checked on what it is for.
+"""
+
+import pickle
+import warnings
+
+import numpy as np
+import pysindy as ps
+import pytest
+from sklearn.base import clone
+from sklearn.exceptions import ConvergenceWarning
+
+from pysindy_mme import MME, FloatingFStepwise
+from pysindy_mme.mme import difference_noise_variance
+from pysindy_mme.smoother import DivergenceError, MMESmoother
+from pysindy_mme.systems import (
+    duffing,
+    forced_oscillator,
+    lotka_volterra,
+    van_der_pol,
+)
+
+SEEDS = range(20)
+
+
+def ignorance_model(x, t):
+    """The paper's assumed model for Van der Pol: x1' = x2, x2' = 0."""
+    return np.column_stack([x[:, 1], np.zeros(len(x))])
+
+
+def _vdp_mme(**kw):
+    args = dict(measured=[0], noise_variance=0.01, error_states=[1])
+    args.update(kw)
+    return MME(ignorance_model, 2, **args)
+
+
+# ------------------------------------------------------- the paper's example
+
+
+@pytest.fixture(scope="module")
+def vdp_study():
+    """20 noise seeds of the paper's case; per seed: errors and W."""
+    system = van_der_pol()
+    out = {}
+    for mode in ("auto", "ml"):
+        rows = []
+        for seed in SEEDS:
+            m = system.measure(seed)
+            mme = _vdp_mme(W=mode).fit(m.y, m.t)
+            e = mme.smoothed_x_ - m.x
+            rows.append(
+                dict(
+                    x1=np.var(e[:, 0]),
+                    x2=np.var(e[:, 1]),
+                    d=np.var(mme.d_[:, 1] - m.d[:, 1]),
+                    ratio=mme.covariance_ratio_[0],
+                    converged=mme.converged_,
+                    W=mme.W_,
+                )
+            )
+        out[mode] = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    return out
+
+
+def test_van_der_pol_covariance_constraint(vdp_study):
+    """W='auto' (the paper's rule): x1 as in the brief, ratio 1 on every seed.
+
+    Paper (one noise realisation): x1 0.001814, x2 0.0141, d 0.1878.
+    """
+    auto = vdp_study["auto"]
+    assert auto["converged"].all()
+    assert np.all(np.abs(auto["ratio"] - 1.0) <= 0.05)
+    assert np.median(auto["x1"]) <= 0.0010
+    # at least as good as the paper's single run on the unmeasured state
+    assert np.median(auto["x2"]) <= 0.0141
+
+
+def test_van_der_pol_maximum_likelihood(vdp_study):
+    ml = vdp_study["ml"]
+    assert ml["converged"].all()
+    assert np.median(ml["x1"]) <= 0.0010
+    auto = vdp_study["auto"]
+    # ML weighs the model error as white noise and picks a smaller W than the
+    # covariance constraint: it follows the data more closely
+    assert np.median(ml["W"]) < np.median(auto["W"]) / 3
+    assert np.median(ml["ratio"]) < 0.95
+    # The covariance ratio is flat in W (0.96 at W = 0.1, 1.08 at W = 5 on
+    # seed 13), so the ~7% sampling scatter of the noise's own variance moves
+    # the covariance-constraint W by orders of magnitude; ML's W is stable.
+    assert np.ptp(np.log10(auto["W"])) > 1.0
+    assert np.ptp(np.log10(ml["W"])) < 0.3
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "brief's thresholds x2 <= 0.011, d <= 0.19 (median of 20 seeds) are not "
+        "met: W='auto' gives x2 0.0135, d 0.284; W='ml' x2 0.0168, d 1.13; even "
+        "the best W chosen per seed with the truth known gives median d 0.220 "
+        "(the paper's 0.1878 is one realisation; 5 of our 20 seeds are below)"
+    ),
+)
+def test_van_der_pol_brief_thresholds_unmeasured_state_and_error(vdp_study):
+    auto = vdp_study["auto"]
+    assert np.median(auto["x2"]) <= 0.011
+    assert np.median(auto["d"]) <= 0.19
+
+
+def test_van_der_pol_through_pysindy():
+    """The DESIGN.md use: SINDy fits d(x) from measurements of x1 only."""
+    system = van_der_pol()
+    m = system.measure(0)
+    mme = MME(ignorance_model, 2, measured=[0], noise_variance=0.01, error_states=[1])
+    sindy = ps.SINDy(
+        differentiation_method=mme,
+        optimizer=FloatingFStepwise(),
+        feature_library=ps.PolynomialLibrary(degree=3),
+    )
+    sindy.fit(m.y, t=m.t, feature_names=["x1", "x2"])
+    assert m.y.shape == (401, 1)
+    assert mme.smoothed_x_.shape == (401, 2)
+    assert mme.d_.shape == (401, 2)
+    assert np.all(mme.d_[:, 0] == 0.0)
+    names = sindy.get_feature_names()
+    coef = sindy.coefficients()
+    truth = {"x1": -1.0, "x2": 1.0, "x1^2 x2": -1.0}
+    for name, value in truth.items():
+        assert coef[1, names.index(name)] == pytest.approx(value, abs=0.3)
+    others = [i for i, nm in enumerate(names) if nm not in truth]
+    assert np.all(np.abs(coef[1, others]) < 0.2)
+    assert np.all(coef[0] == 0.0)  # no error in x1's equation
+
+
+@pytest.mark.filterwarnings("ignore:Sparsity parameter")  # x1' has no error
+def test_multiple_trajectories_keep_last_call():
+    system = van_der_pol()
+    m0, m1 = system.measure(0), system.measure(1, x0=(-1.5, 0.5))
+    mme = _vdp_mme()
+    sindy = ps.SINDy(
+        differentiation_method=mme,
+        feature_library=ps.PolynomialLibrary(degree=3),
+        optimizer=ps.STLSQ(threshold=0.05),
+    )
+    sindy.fit([m0.y, m1.y], t=m0.t, feature_names=["x1", "x2"])
+    # the attributes describe the last trajectory
+    assert np.var(mme.smoothed_x_[:, 0] - m1.x[:, 0]) < 0.002
+
+
+# -------------------------------------------------------- nonlinear models
+
+
+def test_nonlinear_duffing_cubic_assumed_recovers_velocity():
+    """Assumed model with a wrong cubic coefficient; only x1 measured."""
+    system = duffing()
+
+    def assumed(x, t):
+        return np.column_stack([x[:, 1], -x[:, 0] - 0.1 * x[:, 1] - 0.8 * x[:, 0] ** 3])
+
+    errs = []
+    for seed in range(3):
+        m = system.measure(seed)
+        mme = MME(assumed, 2, measured=[0], noise_variance=0.01, error_states=[1])
+        mme.fit(m.y, m.t)
+        assert mme.converged_
+        assert mme.max_defect_ < 1e-8  # the estimate obeys the dynamics
+        assert abs(mme.covariance_ratio_[0] - 1.0) < 1e-3
+        errs.append(np.var(mme.smoothed_x_ - m.x, axis=0))
+    errs = np.array(errs)
+    # well below the noise variance 0.01, for the unmeasured state too
+    assert np.all(errs[:, 0] < 0.001)
+    assert np.all(errs[:, 1] < 0.003)
+
+
+def test_nonlinear_lotka_volterra_one_population_measured():
+    """Predators unmeasured, their equation lacks the feeding term e x1 x2.
+
+    The initial guess sets the predators to zero (an invariant set of the
+    model): Gauss-Newton has to find them from the prey alone.
+    """
+    system = lotka_volterra()
+    m = system.measure(0)
+    y = m.y[:, [0]]
+    mme = MME(
+        system.assumed_model, 2, measured=[0], noise_variance=0.01, error_states=[1]
+    ).fit(y, m.t)
+    assert mme.converged_
+    e = mme.smoothed_x_ - m.x
+    assert np.var(e[:, 0]) < 0.002
+    # predators range over about [0.3, 3.5]: relative error of a few percent
+    assert np.sqrt(np.mean(e[:, 1] ** 2)) < 0.2
+    corr = np.corrcoef(mme.d_[:, 1], m.d[:, 1])[0, 1]
+    assert corr > 0.9
+
+
+def test_not_converged_warns_and_flags():
+    system = lotka_volterra()
+    m = system.measure(0)
+    mme = MME(
+        system.assumed_model,
+        2,
+        measured=[0],
+        noise_variance=0.01,
+        error_states=[1],
+        W=10.0,
+        max_iter=1,
+    )
+    with pytest.warns(ConvergenceWarning, match="did not converge"):
+        mme.fit(m.y[:, [0]], m.t)
+    assert mme.converged_ is False
+    assert mme.n_iter_ == 1
+
+
+def test_divergent_model_raises_clear_error_quickly():
+    """x' = x^3 from x ~ 10 explodes within one 25 ms step: an error, no hang."""
+    t = np.arange(0, 2, 0.025)
+    y = 10.0 + 0.1 * np.random.default_rng(0).standard_normal(t.size)
+    mme = MME(lambda x, t: x**3, 1, noise_variance=0.01)
+    with pytest.raises(DivergenceError, match="blows up within one sample interval"):
+        mme.fit(y, t)
+
+
+# ------------------------------------------------------ options and inputs
+
+
+def test_target_derivative_and_sample_grid_convention():
+    system = van_der_pol()
+    m = system.measure(2)
+    mme = _vdp_mme(W=5.0, target="derivative")
+    xdot = mme(m.y, m.t)
+    np.testing.assert_allclose(
+        xdot, ignorance_model(mme.smoothed_x_, m.t) + mme.d_, rtol=1e-12
+    )
+    true_xdot = system.true_model(m.x, m.t)
+    assert np.sqrt(np.mean((xdot[:, 0] - true_xdot[:, 0]) ** 2)) < 0.15
+    mme.set_params(target="error")
+    np.testing.assert_array_equal(mme(m.y, m.t), mme.d_)
+
+
+def test_inputs_from_constructor_or_fit():
+    system = forced_oscillator()
+    m = system.measure(0)
+    kw = dict(measured=[0], noise_variance=0.01, error_states=[1], W=20.0)
+    a = MME(system.assumed_model, 2, u=m.u, **kw).fit(m.y, m.t)
+    b = MME(system.assumed_model, 2, **kw).fit(m.y, m.t, u=m.u)
+    c = MME(system.assumed_model, 2, u=system.input_signal, **kw).fit(m.y, m.t)
+    np.testing.assert_allclose(a.smoothed_x_, b.smoothed_x_)
+    # the callable input is exact between samples, the array interpolated
+    np.testing.assert_allclose(a.smoothed_x_, c.smoothed_x_, atol=2e-3)
+    assert np.var(a.smoothed_x_[:, 1] - m.x[:, 1]) < 0.005
+    # the hidden effect is 0.5 u: d must follow it
+    assert np.corrcoef(a.d_[:, 1], m.d[:, 1])[0, 1] > 0.9
+
+
+def test_missing_samples_and_irregular_times():
+    system = van_der_pol()
+    rng = np.random.default_rng(0)
+    t = np.sort(rng.uniform(0, 10, 400))
+    m = system.measure(0, t=t)
+    y = m.y.copy()
+    y[rng.choice(400, 40, replace=False)] = np.nan
+    mme = _vdp_mme().fit(y, t)
+    assert np.isnan(mme.residuals_).sum() == 40
+    assert np.all(np.isfinite(mme.smoothed_x_))
+    assert abs(mme.covariance_ratio_[0] - 1.0) < 1e-3
+    assert np.var(mme.smoothed_x_[:, 0] - m.x[:, 0]) < 0.002
+
+
+def test_nonlinear_measurement_function():
+    """y = x1^2 + x2 measured; compare with the same data as a matrix."""
+    system = van_der_pol()
+    m = system.measure(0, full_state=True)
+
+    def g(x):
+        return x[:, [0]] + 0.5 * np.tanh(x[:, [1]])
+
+    def g_jac(x):
+        jac = np.zeros((len(x), 1, 2))
+        jac[:, 0, 0] = 1.0
+        jac[:, 0, 1] = 0.5 / np.cosh(x[:, 1]) ** 2
+        return jac
+
+    y = g(m.x) + 0.1 * np.random.default_rng(1).standard_normal((len(m.t), 1))
+    kw = dict(noise_variance=0.01, error_states=[1], W=5.0)
+    a = MME(ignorance_model, 2, measurement_function=g, **kw).fit(y, m.t)
+    b = MME(
+        ignorance_model, 2, measurement_function=g, measurement_jacobian=g_jac, **kw
+    ).fit(y, m.t)
+    assert a.converged_ and b.converged_
+    np.testing.assert_allclose(a.smoothed_x_, b.smoothed_x_, atol=1e-6)
+    assert np.var(a.smoothed_x_[:, 0] - m.x[:, 0]) < 0.005
+
+
+def test_noise_variance_auto_estimates_and_warns():
+    system = van_der_pol()
+    m = system.measure(0)
+    est = difference_noise_variance(m.y)
+    assert est[0] == pytest.approx(0.01, rel=0.25)
+    with pytest.warns(UserWarning, match="estimated the measurement noise"):
+        mme = _vdp_mme(noise_variance="auto").fit(m.y, m.t)
+    np.testing.assert_allclose(mme.noise_variance_, [[est[0]]])
+
+
+def test_noise_larger_than_data_cannot_meet_constraint():
+    system = van_der_pol()
+    m = system.measure(0)
+    mme = _vdp_mme(noise_variance=50.0)
+    with pytest.warns(UserWarning, match="covariance constraint cannot be met"):
+        mme.fit(m.y, m.t)
+    assert mme.W_at_bound_
+    assert mme.covariance_ratio_[0] < 1.0
+
+
+def test_sklearn_conventions():
+    mme = _vdp_mme(W=3.0)
+    params = mme.get_params()
+    assert params["W"] == 3.0 and params["measured"] == [0]
+    c = clone(mme)
+    assert c.get_params()["error_states"] == [1]
+    assert not hasattr(c, "smoothed_x_")
+    m = van_der_pol().measure(0)
+    mme.fit(m.y, m.t)
+    again = pickle.loads(pickle.dumps(mme))
+    np.testing.assert_array_equal(again.smoothed_x_, mme.smoothed_x_)
+    assert mme.get_params()["W"] == 3.0  # fit does not change parameters
+
+
+# ------------------------------------------------------------- bad input
+
+
+@pytest.fixture
+def no_solve(monkeypatch):
+    """Make any solve fail loudly: validation must come first."""
+
+    def boom(*a, **k):
+        raise AssertionError("solve reached before validation finished")
+
+    monkeypatch.setattr(MMESmoother, "solve", boom)
+
+
+def _data():
+    m = van_der_pol().measure(0)
+    return m.y, m.t
+
+
+def _three_state(x, t):
+    # x3 drives nothing and is driven by nothing: no measurement sees it
+    return np.column_stack([x[:, 1], -x[:, 0], np.zeros(len(x))])
+
+
+@pytest.mark.parametrize(
+    "kwargs, fit, exc, match",
+    [
+        ({}, dict(t=np.arange(401)[::-1] * 0.025), ValueError, "strictly increasing"),
+        ({}, dict(t=np.arange(300) * 0.025), ValueError, "t has 300 entries"),
+        (dict(noise_variance=0.0), {}, ValueError, "noise_variance must be finite"),
+        (dict(noise_variance=-1.0), {}, ValueError, "noise_variance must be finite"),
+        (
+            dict(measured=[0, 1], noise_variance=[[1.0, 2.0], [2.0, 1.0]]),
+            dict(y2=True),
+            ValueError,
+            "positive definite",
+        ),
+        (dict(measured=[2]), {}, ValueError, r"measured = \[2\] is out of range"),
+        (dict(measured=[]), {}, ValueError, "measured must name at least one"),
+        (dict(error_states=[5]), {}, ValueError, "error_states = "),
+        (dict(W=0.0), {}, ValueError, "W must be finite and > 0"),
+        (dict(W=-3.0), {}, ValueError, "W must be finite and > 0"),
+        (dict(W="best"), {}, ValueError, "W must be 'auto', 'ml'"),
+        (dict(W=[[1.0, 0.0], [0.0, 1.0]]), {}, ValueError, r"W must be \(1, 1\)"),
+        (dict(u=np.zeros((7, 1))), {}, ValueError, "u has 7 rows"),
+        (dict(u=np.zeros((401, 1))), {}, ValueError, "assumed_model takes no input"),
+        (dict(target="x"), {}, ValueError, "target must be"),
+        (dict(max_iter=0), {}, ValueError, "max_iter must be a positive"),
+        (
+            dict(measurement_matrix=[[1.0, 0.0]]),
+            {},
+            ValueError,
+            "give only one of measured, measurement_matrix",
+        ),
+        (dict(measured=[0, 1]), {}, ValueError, r"has 1 column\(s\)"),
+        (
+            dict(assumed_model=lambda x, t: x[:, :1]),
+            {},
+            ValueError,
+            "assumed_model returned an array of shape",
+        ),
+        (
+            dict(assumed_model=lambda x, t: np.full_like(x, np.nan)),
+            {},
+            ValueError,
+            "assumed_model returned non-finite",
+        ),
+        (dict(assumed_model="f"), {}, TypeError, "assumed_model must be a callable"),
+        (dict(n_states=0), {}, ValueError, "n_states must be a positive integer"),
+        (
+            dict(assumed_model=_three_state, n_states=3, error_states=[2]),
+            {},
+            ValueError,
+            r"error_states \[2\] cannot be seen",
+        ),
+        (
+            dict(assumed_model=_three_state, n_states=3, error_states=[1]),
+            {},
+            ValueError,
+            r"states \[2\] cannot be seen",
+        ),
+    ],
+)
+def test_bad_input(no_solve, kwargs, fit, exc, match):
+    y, t = _data()
+    if fit.pop("y2", False):
+        y = np.column_stack([y, y])
+    t = fit.pop("t", t)
+    args = dict(
+        assumed_model=ignorance_model,
+        n_states=2,
+        measured=[0],
+        noise_variance=0.01,
+        error_states=[1],
+    )
+    if "measurement_matrix" in kwargs:
+        args.pop("measured")
+        kwargs = dict(kwargs, measured=[0])
+    args.update(kwargs)
+    y_before = y.copy()
+    with pytest.raises(exc, match=match):
+        MME(**args).fit(y, t)
+    np.testing.assert_array_equal(y, y_before)
+
+
+def test_unobservable_state_found_numerically():
+    """Every state is measured, yet not observable: the singular KKT is named.
+
+    y sees only x0 + x1 and both states are pure integrators of their model
+    errors, so the initial value of x0 - x1 is undetermined (no prior on the
+    initial state). The structural check cannot see this; the zero pivot of
+    the KKT factorisation does, and the error names the direction.
+    """
+
+    def model(x, t):
+        return np.zeros_like(x)
+
+    y, t = _data()
+    mme = MME(
+        model,
+        2,
+        measurement_matrix=[[1.0, 1.0]],
+        noise_variance=0.01,
+        error_states=[0, 1],
+        W=1.0,
+    )
+    with pytest.raises(ValueError, match=r"not all observable.*\[\+1 x0 -1 x1\]"):
+        mme.fit(y, t)
+
+
+def test_clean_fit_emits_no_warning():
+    """A clean fit emits no warning at all."""
+    y, t = _data()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _vdp_mme().fit(y, t)
