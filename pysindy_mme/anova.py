@@ -52,7 +52,7 @@ def f_pvalue(f_ratio, dof_numerator, dof_residual):
         return stats.f.sf(f_ratio, dof_numerator, dof_residual)[()]
 
 
-def lstsq_refined(A, b):
+def lstsq_refined(A, b, qr=None):
     """Least-squares solution of ``A x = b`` by Householder QR plus one refinement.
 
     The residual of the first solution is recomputed in extended precision
@@ -65,6 +65,8 @@ def lstsq_refined(A, b):
     ----------
     A : ndarray (n, k), full column rank, k <= n
     b : ndarray (n,) or (n, m)
+    qr : tuple (Q, R), optional
+        The reduced QR factors of ``A`` if already computed.
 
     Returns
     -------
@@ -74,7 +76,7 @@ def lstsq_refined(A, b):
     b = np.asarray(b, dtype=float)
     if A.shape[1] == 0:
         return np.zeros((0,) + b.shape[1:])
-    Q, R = np.linalg.qr(A)
+    Q, R = np.linalg.qr(A) if qr is None else qr
     x = scipy.linalg.solve_triangular(R, Q.T @ b)
     # Extended precision residual: cheap (O(n k)) since k is small here.
     ld = np.longdouble
@@ -338,7 +340,7 @@ def fit_anova(
         )
 
     Q, R = np.linalg.qr(A)
-    beta = lstsq_refined(A, yw)
+    beta = lstsq_refined(A, yw, qr=(Q, R))
     resid = yw - A @ beta
     ss_res = float(resid @ resid)
     if intercept:

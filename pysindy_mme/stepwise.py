@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 from pysindy.optimizers import BaseOptimizer
-from scipy.linalg.blas import dger
+from scipy.linalg.lapack import dtrtri
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
@@ -49,6 +49,7 @@ _BLOCK_ELEMENTS = 1 << 22
 # partial F-ratios computed from a rounding-noise residual are meaningless, so
 # no further function may enter.
 _EXACT_FIT_RTOL = 1e-12
+_EPS = np.finfo(float).eps
 
 
 class StepwiseCycleWarning(UserWarning):
@@ -110,14 +111,22 @@ def _blocks(n_rows: int, n_cols: int):
 
 @dataclass
 class _Screen:
-    """Which library columns may be selected, and their centred, weighted form."""
+    """Which library columns may be selected, and their weighted statistics."""
 
     carrier: int | None  # exactly constant column that carries the intercept
     carrier_value: float
     excluded: dict  # column -> reason
-    eligible: np.ndarray  # column indices that may be selected
-    mean: np.ndarray  # weighted means of the eligible columns
-    cnorm2: np.ndarray  # squared norms of the centred weighted eligible columns
+    eligible: np.ndarray  # bool (p,): may be selected
+    mean: np.ndarray  # (p,) weighted column means
+    cn2: np.ndarray  # (p,) squared norms of the centred weighted columns
+    un2: np.ndarray  # (p,) squared norms of the weighted columns
+
+
+def _xt(x, v, eligible):
+    """``x.T @ v`` with the columns that are not eligible (maybe non-finite) zeroed."""
+    with np.errstate(all="ignore"):  # inf * 0 in set-aside columns
+        out = x.T @ v
+    return np.where(eligible, out, 0.0)
 
 
 def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
@@ -126,34 +135,31 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
     Set aside: non-finite values, all-zero columns, constant columns other than
     the first (which carries the intercept), columns collinear with the
     constant, and columns collinear with an earlier column (exact duplicates
-    included; the first one is kept). Two blockwise passes at most.
+    included; the first one is kept). One blockwise pass over ``x``.
     """
     n, p = x.shape
     w = sw**2
     finite = np.ones(p, dtype=bool)
-    allzero = np.zeros(p, dtype=bool)
     exact_const = np.zeros(p, dtype=bool)
     mean = np.zeros(p)
     cn2 = np.zeros(p)
-    un2 = np.zeros(p)
     fprint = np.zeros(p)
     # A fixed random direction: collinear columns have equal |fingerprint|.
     g = np.random.default_rng(20240601).standard_normal(n)
-    gw = g * sw
     for blk in _blocks(n, p):
         B = x[:, blk]
         fin = np.all(np.isfinite(B), axis=0)
         finite[blk] = fin
         if not np.all(fin):
             B = np.where(fin, B, 0.0)
-        allzero[blk] = fin & np.all(B == 0, axis=0)
         exact_const[blk] = fin & np.all(B == B[:1], axis=0)
         m = (w @ B) / n_eff
         mean[blk] = m
-        C = (B - m) * sw[:, None]
+        C = (B - m) * sw[:, None]  # centred, weighted: accurate for near-constants
         cn2[blk] = np.einsum("ij,ij->j", C, C)
-        un2[blk] = np.einsum("ij,ij->j", B * sw[:, None], B * sw[:, None])
-        fprint[blk] = gw @ (B - m)
+        fprint[blk] = g @ C
+    un2 = np.where(finite, cn2 + n_eff * mean**2, 0.0)
+    allzero = finite & (un2 == 0)
     excluded = {}
     carrier = None
     carrier_value = 0.0
@@ -175,7 +181,7 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
 
     # Pairwise collinearity: candidate pairs have close fingerprints (within
     # ||g|| * 4 * tolerance, plus rounding); each candidate pair is then
-    # verified exactly on the centred columns.
+    # verified on the centred columns.
     idx = np.flatnonzero(ok)
     order = idx[np.argsort(fprint[idx], kind="stable")]
     a = fprint[order]
@@ -194,66 +200,67 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
                     excluded[j] = f"duplicate of f{i}"
                 else:
                     excluded[j] = f"collinear with f{i}"
-    eligible = np.array(
-        [j for j in np.flatnonzero(ok) if int(j) not in excluded], dtype=int
-    )
+    eligible = ok.copy()
+    eligible[list(excluded)] = False
     return _Screen(
         carrier=carrier,
         carrier_value=carrier_value,
         excluded=dict(sorted(excluded.items())),
         eligible=eligible,
-        mean=mean[eligible],
-        cnorm2=cn2[eligible],
+        mean=mean,
+        cn2=np.where(eligible, cn2, 0.0),
+        un2=np.where(eligible, un2, 0.0),
     )
-
-
-def _centred_candidates(x, sw, screen: _Screen) -> np.ndarray:
-    """The eligible columns, weighted and centred, as a Fortran-ordered array."""
-    n = x.shape[0]
-    cols = screen.eligible
-    R = np.empty((n, cols.size), order="F")
-    for blk in _blocks(n, cols.size):
-        R[:, blk] = (x[:, cols[blk]] - screen.mean[blk]) * sw[:, None]
-    return R
 
 
 class _Path:
     """Incremental least-squares state of one target during selection.
 
-    Holds ``Q`` (orthonormal basis of the weighted constant and the model
-    columns), the triangular factor ``T`` with ``[sqrt(w), X_S] = Q T``,
-    ``z = Q^T y``, the residual ``e = y - Q z``, and every eligible candidate
-    residualised against ``Q`` (``R``, modified in place) with its squared
-    norm and its product with ``e``. Adding a column is a rank-1 update of
-    ``R`` (``O(n p)``); removing one rebuilds ``Q`` from the ``k`` model
-    columns (``O(n k^2)``) and re-residualises the candidates (``O(n p k)``).
+    With ``X`` the weighted library (rows scaled by ``sqrt(w)``) and ``S`` the
+    model, it holds ``Q`` (orthonormal basis of the weighted constant and the
+    model columns), the triangular ``T`` with ``[sqrt(w), X_S] = Q T``,
+    ``z = Q^T y``, the residual ``e = y - Q z`` and ``C = Q^T X`` (``k+1`` rows,
+    one per basis vector). The residual of candidate ``j`` against the model,
+    ``r_j = x_j - Q C[:, j]``, is never formed: the partial F of entry (eq. 19)
+    needs only ``||r_j||^2 = ||x_j - mean||^2 - sum_{i>0} C[i, j]^2`` and
+    ``r_j^T e = x_j^T e`` (``e`` is orthogonal to ``Q``); both are kept up to
+    date. Adding a column costs one product ``X^T q`` (``O(n p)``, read
+    only); removing one rotates the small factor (``T`` minus a column, made
+    triangular again by an orthogonal ``G``; ``Q G``, ``G^T C``: ``O(n k^2 +
+    k^2 p)``) and the dropped direction ``u`` gives ``e += u (u^T y)``,
+    ``X^T e += (u^T X) (u^T y)`` and ``||r||^2 += (u^T X)^2``.
+    Where subtracting squares would lose accuracy (a candidate nearly in the
+    span of the model), ``r_j`` is recomputed explicitly (Gram-Schmidt twice).
     """
 
-    def __init__(self, x, sw, yw, screen: _Screen, R, n_eff, tolerance):
+    def __init__(self, x, sw, yw, screen: _Screen, n_eff, tolerance):
         self.x = x
         self.sw = sw
         self.yw = yw
         self.carrier = screen.carrier
         self.carrier_value = screen.carrier_value
-        self.cols = screen.eligible
-        self.cnorm2 = screen.cnorm2
-        self.R = R
+        self.eligible = screen.eligible
+        self.cn2 = screen.cn2
+        self.un2 = screen.un2
         self.n_eff = n_eff
         self.tol2 = tolerance**2
-        self.support = []  # positions into self.cols, in Q column order
-        self.in_model = np.zeros(self.cols.size, dtype=bool)
-        n = sw.size
-        self.Q = np.zeros((n, 8), order="F")
+        n, p = x.shape
+        self.support = []  # library columns, in the order of Q's columns 1..k
+        self.in_model = np.zeros(p, dtype=bool)
+        cap = 8
+        self.Q = np.zeros((n, cap), order="F")
+        self.C = np.zeros((cap, p))
         norm_sw = float(np.linalg.norm(sw))
         self.Q[:, 0] = sw / norm_sw
+        self.C[0] = np.where(self.eligible, screen.mean * norm_sw, 0.0)
         self.T = np.array([[norm_sw]])
         self.z = np.array([self.Q[:, 0] @ yw])
         self.e = yw - self.Q[:, 0] * self.z[0]
         self.e -= self.Q[:, 0] * (self.Q[:, 0] @ self.e)
         self.floor2 = (_EXACT_FIT_RTOL * float(np.linalg.norm(yw))) ** 2
         self.sst = self.sse()  # centred total sum of squares
-        self.nr2 = self.cnorm2.copy()
-        self.g = self.R.T @ self.e
+        self.nr2 = self.cn2.copy()
+        self._exact_g()
 
     @property
     def k(self) -> int:
@@ -264,6 +271,12 @@ class _Path:
 
     def exact_fit(self) -> bool:
         return self.sse() <= self.floor2
+
+    def _exact_g(self):
+        """``g = X^T e`` by a product with the library (resets rounding drift)."""
+        self.g = _xt(self.x, self.sw * self.e, self.eligible)
+        self.g[self.in_model] = 0.0
+        self.g_sse = self.sse()
 
     def coefficients(self) -> np.ndarray:
         """Least-squares coefficients of ``[constant, support...]``."""
@@ -280,7 +293,9 @@ class _Path:
     def in_model_f(self) -> np.ndarray:
         """Partial F-ratios (eq. 20) of ``[constant, support...]``: ``t**2``."""
         k = self.k
-        Tinv = scipy.linalg.solve_triangular(self.T, np.eye(k + 1))
+        Tinv, info = dtrtri(self.T, lower=0)
+        if info != 0:  # pragma: no cover - T is nonsingular by construction
+            Tinv = np.linalg.pinv(self.T)
         beta = Tinv @ self.z
         diag = np.einsum("ij,ij->i", Tinv, Tinv)
         s2 = self.sse() / (self.n_eff - k - 1)
@@ -290,7 +305,7 @@ class _Path:
         """Partial F-ratios of entry (eq. 19); ``-inf`` where not eligible."""
         sse = self.sse()
         dof_new = self.n_eff - self.k - 2
-        elig = (~self.in_model) & (self.nr2 > self.tol2 * self.cnorm2)
+        elig = self.eligible & ~self.in_model & (self.nr2 > self.tol2 * self.cn2)
         if dof_new < 1:
             elig[:] = False
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -299,17 +314,34 @@ class _Path:
         f = _safe_div(red * dof_new, np.maximum(sse - red, 0.0))
         return np.where(elig, f, -np.inf)
 
-    def _append_q(self, q):
-        k1 = self.k + 1  # columns in use before appending
-        if k1 >= self.Q.shape[1]:
-            grown = np.zeros((self.Q.shape[0], 2 * self.Q.shape[1]), order="F")
-            grown[:, :k1] = self.Q[:, :k1]
-            self.Q = grown
-        self.Q[:, k1] = q
+    def _grow(self):
+        cap = self.Q.shape[1]
+        if self.k + 1 < cap:
+            return
+        Q = np.zeros((self.Q.shape[0], 2 * cap), order="F")
+        Q[:, :cap] = self.Q
+        C = np.zeros((2 * cap, self.C.shape[1]))
+        C[:cap] = self.C
+        self.Q, self.C = Q, C
 
-    def add(self, pos: int) -> None:
-        Qk = self.Q[:, : self.k + 1]
-        xj = self.x[:, self.cols[pos]] * self.sw
+    def _refresh(self, cols):
+        """Recompute ``r_j`` for ``cols`` explicitly; refresh their statistics."""
+        k1 = self.k + 1
+        Qk = self.Q[:, :k1]
+        Xj = self.x[:, cols] * self.sw[:, None]
+        A = Qk.T @ Xj
+        Rj = Xj - Qk @ A
+        A2 = Qk.T @ Rj
+        Rj -= Qk @ A2
+        self.C[:k1, cols] = A + A2
+        self.nr2[cols] = np.einsum("ij,ij->j", Rj, Rj)
+        self.g[cols] = Rj.T @ self.e
+
+    def add(self, j: int) -> None:
+        self._grow()
+        k1 = self.k + 1
+        Qk = self.Q[:, :k1]
+        xj = self.x[:, j] * self.sw
         # Gram-Schmidt twice: orthogonal to working precision even when the
         # column is nearly in the span of the model.
         a = Qk.T @ xj
@@ -319,7 +351,6 @@ class _Path:
         a += a2
         rho = float(np.linalg.norm(r))
         q = r / rho
-        k1 = self.k + 1
         T = np.zeros((k1 + 1, k1 + 1))
         T[:k1, :k1] = self.T
         T[:k1, k1] = a
@@ -328,47 +359,50 @@ class _Path:
         zq = float(q @ self.e)
         self.z = np.append(self.z, zq)
         self.e -= q * zq
-        self._append_q(q)
-        self.support.append(pos)
-        self.in_model[pos] = True
-        # Residualise every candidate against q: one rank-1 update, in place.
-        wq = self.R.T @ q
-        dger(-1.0, q, wq, a=self.R, overwrite_a=1)
+        self.Q[:, k1] = q
+        cq = _xt(self.x, self.sw * q, self.eligible)  # the one O(n p) product
+        self.C[k1] = cq
+        self.support.append(j)
+        self.in_model[j] = True
         old = self.nr2
-        self.nr2 = old - wq**2
-        # Downdating a squared norm loses accuracy when most of it goes away:
-        # recompute those columns directly.
-        redo = np.flatnonzero(self.nr2 < 1e-6 * old)
+        self.nr2 = old - cq**2
+        self.g = self.g - cq * zq
+        self.nr2[self.in_model] = 0.0
+        self.g[self.in_model] = 0.0
+        if self.sse() < 1e-4 * self.g_sse:
+            self._exact_g()  # e shrank a lot: refresh the products
+        # Subtracting squares loses accuracy when most of ||r_j|| goes away:
+        # the error estimate eps * (old + 2 sqrt(old * ||x_j||^2)) / new.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = _EPS * (old + 2 * np.sqrt(old * self.un2)) / self.nr2
+        redo = np.flatnonzero(
+            self.eligible & ~self.in_model & ((self.nr2 <= 0) | ~(err < 1e-8))
+        )
         if redo.size:
-            Rr = self.R[:, redo]
-            self.nr2[redo] = np.einsum("ij,ij->j", Rr, Rr)
-        self.R[:, pos] = 0.0
-        self.nr2[pos] = 0.0
-        self.g = self.R.T @ self.e
+            self._refresh(redo)
 
-    def remove(self, pos: int) -> None:
-        self.support.remove(pos)
-        self.in_model[pos] = False
-        cols = self.cols[self.support]
-        A = np.column_stack([self.sw, self.x[:, cols] * self.sw[:, None]])
-        Q, T = np.linalg.qr(A)
-        k1 = Q.shape[1]
-        self.Q[:, :k1] = Q
-        self.Q[:, k1:] = 0.0
-        self.T = T
-        self.z = Q.T @ self.yw
-        self.e = self.yw - Q @ self.z
-        self.e -= Q @ (Q.T @ self.e)
-        n = self.sw.size
-        for blk in _blocks(n, self.cols.size):
-            B = self.x[:, self.cols[blk]] * self.sw[:, None]
-            B -= Q @ (Q.T @ B)
-            self.R[:, blk] = B
-        self.nr2 = np.einsum("ij,ij->j", self.R, self.R)
-        model = np.flatnonzero(self.in_model)
-        self.R[:, model] = 0.0
-        self.nr2[model] = 0.0
-        self.g = self.R.T @ self.e
+    def remove(self, j: int) -> None:
+        k1 = self.k + 1
+        i = self.support.index(j) + 1  # column of T (0 is the constant)
+        Tdel = np.delete(self.T, i, axis=1)  # (k+1, k): Hessenberg from i on
+        G, Tnew = np.linalg.qr(Tdel, mode="complete")
+        Qr = self.Q[:, :k1] @ G
+        Cr = G.T @ self.C[:k1]
+        zr = G.T @ self.z
+        u, cu, a = Qr[:, -1], Cr[-1], float(zr[-1])  # the dropped direction
+        self.Q[:, : k1 - 1] = Qr[:, :-1]
+        self.Q[:, k1 - 1] = 0.0
+        self.C[: k1 - 1] = Cr[:-1]
+        self.C[k1 - 1] = 0.0
+        self.T = Tnew[:-1]
+        self.z = zr[:-1]
+        self.support.remove(j)
+        self.in_model[j] = False
+        self.e = self.e + u * a
+        self.g = self.g + cu * a
+        self.nr2 = self.nr2 + cu**2
+        self.nr2[self.in_model] = 0.0
+        self.g[self.in_model] = 0.0
 
 
 class FloatingFStepwise(BaseOptimizer):
@@ -730,7 +764,6 @@ class FloatingFStepwise(BaseOptimizer):
                 ExcludedFeaturesWarning,
                 stacklevel=2,
             )
-        R0 = _centred_candidates(x, sw, screen)
 
         n_targets = y.shape[1]
         coef = np.zeros((n_targets, n_features))
@@ -743,9 +776,7 @@ class FloatingFStepwise(BaseOptimizer):
         self.converged_ = True
         self.cycle_detected_ = False
         for t in range(n_targets):
-            # Every target starts from the same centred candidates.
-            R = R0 if t == n_targets - 1 else R0.copy(order="F")
-            path = _Path(x, sw, y[:, t] * sw, screen, R, n_eff, tol)
+            path = _Path(x, sw, y[:, t] * sw, screen, n_eff, tol)
             steps = self._select(path, t, coef, params, n_eff)
             self.steps_.append(steps)
             self.n_iter_[t] = len(steps)
@@ -757,7 +788,7 @@ class FloatingFStepwise(BaseOptimizer):
             self.anova_.append(table)
             self.intercept_dropped_[t] = dropped
             self.history_.append(coef.copy())
-            del path, R
+            del path
         self.coef_ = coef
         self.intercept_ = intercept
         self.ind_ = coef != 0
@@ -777,7 +808,6 @@ class FloatingFStepwise(BaseOptimizer):
         trail_f = [0.0]  # their overall F-ratios
         goal = None  # after a cycle: the state of the cycle to stop at
         replay_left = 0
-        cols = path.cols
         while True:
             k = path.k
             enter_thr, remove_thr = self._thresholds(k, n_eff, params)
@@ -826,7 +856,7 @@ class FloatingFStepwise(BaseOptimizer):
                 fval = float(path.in_model_f()[-1])
             else:
                 path.remove(pos)
-            feature = int(cols[pos])
+            feature = int(pos)
             steps.append(
                 Step(
                     iteration=len(steps) + 1,
@@ -876,7 +906,7 @@ class FloatingFStepwise(BaseOptimizer):
     def _record_history(self, path: _Path, target: int, coef) -> None:
         beta = path.coefficients()
         row = np.zeros(coef.shape[1])
-        row[path.cols[path.support]] = beta[1:]
+        row[path.support] = beta[1:]
         if path.carrier is not None:
             row[path.carrier] = beta[0] / path.carrier_value
         current = coef.copy()
@@ -885,13 +915,13 @@ class FloatingFStepwise(BaseOptimizer):
 
     def _final_fit(self, path: _Path, x, y, w, screen: _Screen, params, n_eff):
         """Coefficients on the support (accurate QR solve) and the ANOVA table."""
-        support = np.sort(path.cols[path.support])
+        support = np.sort(np.asarray(path.support, dtype=int))
         top = []
         if self.max_report > 0:
             f_cand = path.candidate_f()
             order = np.argsort(-f_cand, kind="stable")
             order = order[np.isfinite(f_cand[order])][: self.max_report]
-            top = [int(path.cols[i]) for i in order]
+            top = [int(i) for i in order]
         table = fit_anova(
             x,
             y,
