@@ -15,9 +15,19 @@ equation) it selects library functions one at a time by partial F-ratios
   reach ``max(F_enter, floating threshold)`` to enter.
 
 The selection never refits the model per candidate. It keeps an orthonormal
-basis ``Q`` of the model columns, every candidate residualised against it
-and the current residual, so an iteration costs ``O(n_samples * n_candidates)``
-(see :class:`_Path`).
+basis ``Q`` of the model columns, the projections ``Q^T X`` of the library and
+the current residual, from which every candidate's partial F-ratio follows in
+``O(n_candidates)``; adding a function costs one pass over the library
+(``O(n_samples * n_candidates)``), removing one ``O(n_samples * k^2 +
+k^2 * n_candidates)`` for ``k`` functions in the model (see :class:`_Path`).
+The library is never copied.
+
+Cycles: the floating threshold can send the selection round a loop (e.g.
+removing a term lowers the strongest partial F-ratio, hence the threshold,
+and the term re-enters). Decisions depend only on (phase, model), so a
+repeated state is a true cycle: the selection warns
+(:class:`StepwiseCycleWarning`) and stops at the model of the cycle with the
+largest overall F-ratio, which the paper reads as the better representation.
 """
 
 from __future__ import annotations
@@ -93,6 +103,10 @@ class Step:
     partial_f: float
     threshold: float
     n_terms: int
+
+
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}" + ("" if count == 1 else "s")
 
 
 def _safe_div(num, den):
@@ -485,9 +499,10 @@ class FloatingFStepwise(BaseOptimizer):
     converged_ : bool
         False if some target hit ``max_iter``.
     cycle_detected_ : bool
-        True if some target returned to a model already visited (in the same
-        phase); the selection then stopped there with a
-        :class:`StepwiseCycleWarning`.
+        True if some target returned to a model already visited in the same
+        phase (a cycle); a :class:`StepwiseCycleWarning` was raised and the
+        selection stopped at the model of the cycle with the largest overall
+        F-ratio.
     intercept_dropped_ : ndarray of bool (n_targets,)
         Whether the constant was dropped (``drop_insignificant_constant``).
     excluded_ : dict
@@ -508,6 +523,21 @@ class FloatingFStepwise(BaseOptimizer):
     degrees of freedom is ``sum(sample_weight)``, so a fit with integer weights
     equals a fit on rows repeated by their weights. Rows of weight 0 are
     ignored.
+
+    The target must be finite: unlike pysindy's own optimizers, rows with NaN
+    targets (e.g. the end points of ``FiniteDifference(drop_endpoints=True)``)
+    are an error rather than silently dropped.
+
+    Phase II compares partial F-ratios with the strongest one, so a true term
+    whose contribution is small next to the others (Lorenz's ``-x2`` in
+    ``x2'``, a light damping) is removed with the default ``float_ratio=10``;
+    raise ``float_ratio`` or set ``floating=False`` for such multi-scale
+    dynamics (see ``tests/test_stepwise_vs_stlsq.py``).
+
+    A target reproduced to rounding level (relative residual ``< 1e-12``,
+    noise-free data) takes no further functions, Phase II does not rank the
+    (then meaningless) partial F-ratios, and the constant is dropped only if
+    the fit stays exact without it.
 
     Inside ``ps.SINDy`` the optimizer does not see the feature names; print
     the ANOVA tables with
@@ -1048,7 +1078,7 @@ class FloatingFStepwise(BaseOptimizer):
                 table.to_text(
                     feature_names,
                     title=f"=== {labels[t]}: final model ANOVA table "
-                    f"({len(self.steps_[t])} steps, n = {table.n:g}) ===",
+                    f"({_plural(len(self.steps_[t]), 'step')}, n = {table.n:g}) ===",
                 )
             )
             if self.intercept_dropped_[t]:

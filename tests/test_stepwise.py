@@ -181,6 +181,64 @@ def test_summary_reads_like_table_ii(hald):
         opt.summary(target=3)
 
 
+# ------------------------------------------------- every step vs brute force
+def _correlated_problem(seed):
+    rng = np.random.default_rng(seed)
+    n, p = 150, 25
+    mix = 0.5 * rng.standard_normal((p, p)) + np.eye(p)
+    X = rng.standard_normal((n, p)) @ mix
+    beta = np.zeros(p)
+    beta[rng.choice(p, 5, replace=False)] = rng.uniform(0.3, 1.0, 5)
+    return X, X @ beta + rng.standard_normal(n)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 5, 6])
+def test_every_step_matches_brute_force_refits(seed):
+    """Replay the selection with two lstsq refits per partial F-ratio.
+
+    Checks, at every step, the partial F, that the chosen function is the
+    best (largest entry F / smallest in-model F), the threshold of its phase,
+    and at the end that the brute-force rules allow no further step. The
+    incremental updates (additions, and the Phase II removals these problems
+    trigger) must agree with refits from scratch.
+    """
+    X, y = _correlated_problem(seed)
+    f_in, ratio = 4.0, 10.0
+    opt = FloatingFStepwise(f_enter=f_in, f_remove=f_in, float_ratio=ratio).fit(X, y)
+    model = []
+    removals = 0
+    for step in opt.steps_[0]:
+        inside = {j: f_remove_brute(X, y, model, j) for j in model}
+        floating = max(inside.values()) / ratio if step.phase == 2 and model else 0
+        threshold = max(f_in, floating)
+        assert step.threshold == pytest.approx(threshold, rel=1e-9)
+        if step.action == "add":
+            outside = {
+                j: f_enter_brute(X, y, model, j)
+                for j in range(X.shape[1])
+                if j not in model
+            }
+            assert step.feature == max(outside, key=outside.get)
+            assert step.partial_f == pytest.approx(outside[step.feature], rel=1e-9)
+            assert step.partial_f >= threshold
+            model.append(step.feature)
+        else:
+            assert step.feature == min(inside, key=inside.get)
+            assert step.partial_f == pytest.approx(inside[step.feature], rel=1e-9)
+            assert step.partial_f < threshold
+            model.remove(step.feature)
+            removals += 1
+    assert removals >= 1
+    assert set(np.flatnonzero(opt.coef_[0])) == set(model)
+    inside = {j: f_remove_brute(X, y, model, j) for j in model}
+    outside = [f_enter_brute(X, y, model, j) for j in range(25) if j not in model]
+    threshold = max(f_in, max(inside.values()) / ratio)
+    assert min(inside.values()) >= threshold > max(outside)
+    np.testing.assert_allclose(
+        opt.anova_[0].partial_f, [inside[j] for j in sorted(model)], rtol=1e-9
+    )
+
+
 # ---------------------------------------------------------------------- Phase II
 def _weak_term_problem(seed=0, n=400):
     rng = np.random.default_rng(seed)
