@@ -53,8 +53,8 @@ __all__ = [
     "ExcludedFeaturesWarning",
 ]
 
-# Temporaries of size n_samples x block are capped at this many doubles (32 MB).
-_BLOCK_ELEMENTS = 1 << 22
+# Temporaries of size n_samples x block are capped at this many doubles (8 MB).
+_BLOCK_ELEMENTS = 1 << 20
 # A target reproduced to this relative accuracy is fitted to rounding level:
 # partial F-ratios computed from a rounding-noise residual are meaningless, so
 # no further function may enter.
@@ -202,6 +202,8 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
     window = np.linalg.norm(g) * 4.0 * tolerance + 1e-9 * (1.0 + a)
     hi = np.searchsorted(a, a + window, side="right")
     for s in np.flatnonzero(hi > np.arange(a.size) + 1):
+        if int(order[s]) in excluded:
+            continue  # its partners are found from the column it repeats
         for t in range(s + 1, hi[s]):
             i, j = sorted((int(order[s]), int(order[t])))
             if j in excluded:
