@@ -52,8 +52,13 @@ def best_time(fn, repeats):
 def run(quick=False):
     rows = []
     X, y, true = problem(10_000, 500)
-    t_fit, opt = best_time(lambda: FloatingFStepwise().fit(X, y), 3)
-    t_lstsq, _ = best_time(lambda: np.linalg.lstsq(X, y, rcond=None), 3)
+    # Interleaved repeats, best of each: fair when the machine is shared.
+    t_fit = t_lstsq = np.inf
+    for _ in range(5):
+        t, opt = best_time(lambda: FloatingFStepwise().fit(X, y), 1)
+        t_fit = min(t_fit, t)
+        t, _ = best_time(lambda: np.linalg.lstsq(X, y, rcond=None), 1)
+        t_lstsq = min(t_lstsq, t)
     found = np.flatnonzero(opt.coef_[0])
     rows.append(
         dict(
