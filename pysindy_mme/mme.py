@@ -600,7 +600,7 @@ class MME(BaseDifferentiation):
                     stacklevel=4,
                 )
             else:
-                best = brentq(g, min(a, b), max(a, b), xtol=1e-4)
+                best = brentq(g, min(a, b), max(a, b), xtol=5e-3)
         else:
             left, mid, right = l0 - step, l0, l0 + step
             fl, fm, fr = criterion(left), criterion(mid), criterion(right)
@@ -659,8 +659,11 @@ class MME(BaseDifferentiation):
     def _overall_ratio(res, smoother):
         """``trace(R^-1 S) / m`` with ``S`` the residual second-moment matrix."""
         r0 = np.where(smoother.mask, res.residuals, 0.0)
-        counts = smoother.mask.T.astype(float) @ smoother.mask.astype(float)
-        S = (r0.T @ r0) / np.maximum(counts, 1.0)
+        if smoother.m == 1:
+            S = np.array([[r0[:, 0] @ r0[:, 0] / max(smoother.n_obs, 1)]])
+        else:
+            mk = smoother.mask.astype(float)
+            S = (r0.T @ r0) / np.maximum(mk.T @ mk, 1.0)
         return float(np.trace(np.linalg.solve(smoother.R, S)) / smoother.m)
 
     # -------------------------------------------------------------- output

@@ -462,3 +462,22 @@ def test_clean_fit_emits_no_warning():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _vdp_mme().fit(y, t)
+
+
+def test_fitted_pysindy_model_as_assumed_model():
+    """A SINDy model of the undamped oscillator, used as the assumed model."""
+    system = duffing()
+    t = np.arange(0, 20, 0.025)
+    x = np.column_stack([np.cos(t), -np.sin(t)])
+    sindy = ps.SINDy(feature_library=ps.PolynomialLibrary(degree=1))
+    sindy.fit(x, t=t, x_dot=np.column_stack([x[:, 1], -x[:, 0]]))
+    m = system.measure(0)
+    kw = dict(measured=[0], noise_variance=0.01, error_states=[1], W=10.0)
+
+    def oscillator(x, t):
+        return np.column_stack([x[:, 1], -x[:, 0]])
+
+    a = MME(sindy, 2, **kw).fit(m.y, m.t)
+    b = MME(oscillator, 2, **kw).fit(m.y, m.t)
+    np.testing.assert_allclose(a.smoothed_x_, b.smoothed_x_, atol=1e-6)
+    np.testing.assert_allclose(a.d_, b.d_, atol=1e-5)

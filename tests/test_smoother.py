@@ -19,6 +19,7 @@ from derivative import Kalman
 from scipy.linalg import expm
 
 from pysindy_mme import MME
+from pysindy_mme.smoother import MMESmoother
 from pysindy_mme.systems import duffing, van_der_pol
 
 # ---------------------------------------------------------------- reference
@@ -213,3 +214,15 @@ def test_integrated_random_walk_approaches_continuous_kalman():
         diffs.append(d_vel)
     # halving h divides the velocity difference by about 4 (at least 2.5)
     assert diffs[0] / diffs[1] >= 2.5
+
+
+def test_blockwise_integration_matches_one_block(monkeypatch):
+    """Long records are integrated in blocks of intervals; nothing changes."""
+    system = van_der_pol()
+    m = system.measure(4)
+    kw = dict(measured=[0], noise_variance=0.01, error_states=[1], W=5.0)
+    whole = MME(system.true_model, 2, **kw).fit(m.y, m.t)
+    monkeypatch.setattr(MMESmoother, "_CHUNK", 37)
+    blocks = MME(system.true_model, 2, **kw).fit(m.y, m.t)
+    np.testing.assert_allclose(blocks.smoothed_x_, whole.smoothed_x_, rtol=1e-12)
+    np.testing.assert_allclose(blocks.d_, whole.d_, rtol=1e-10, atol=1e-12)
