@@ -9,7 +9,7 @@ a library of functions of the state (:class:`FloatingFStepwise`,
 from .discovery import Discovery, ExtendedModel, discover
 from .libraries import PowerLibrary
 from .mme import MME
-from .stepwise import FloatingFStepwise
+from .stepwise import ExcludedFeaturesWarning, FloatingFStepwise, StepwiseCycleWarning
 
 __all__ = [
     "MME",
@@ -18,6 +18,8 @@ __all__ = [
     "FloatingFStepwise",
     "PowerLibrary",
     "discover",
+    "ExcludedFeaturesWarning",
+    "StepwiseCycleWarning",
 ]
 
 __version__ = "0.1.0"
