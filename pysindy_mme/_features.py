@@ -72,10 +72,12 @@ class SelectedFeatures:
     def is_fast(self) -> bool:
         return self._factors is not None
 
-    def _fast(self, z):
-        out = np.ones((z.shape[0], len(self._factors)))
+    def _fast(self, z, subset=None):
+        chosen = range(len(self._factors)) if subset is None else subset
+        out = np.ones((z.shape[0], len(chosen)))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            for j, factors in enumerate(self._factors):
+            for j, k in enumerate(chosen):
+                factors = self._factors[k]
                 for var, power, absolute in factors:
                     base = np.abs(z[:, var]) if absolute else z[:, var]
                     out[:, j] *= base if power == 1 else base ** float(power)
@@ -86,8 +88,12 @@ class SelectedFeatures:
             theta = np.asarray(self.library.transform(np.asarray(z, dtype=float)))
         return theta[:, self.indices]
 
-    def __call__(self, z) -> np.ndarray:
+    def __call__(self, z, subset=None) -> np.ndarray:
+        """Columns ``indices`` (or the positions ``subset`` of them) at ``z``."""
         z = np.atleast_2d(np.asarray(z, dtype=float))
-        if len(self.indices) == 0:
+        if len(self.indices) == 0 or (subset is not None and len(subset) == 0):
             return np.zeros((z.shape[0], 0))
-        return self._fast(z) if self._factors is not None else self._transform(z)
+        if self._factors is not None:
+            return self._fast(z, subset)
+        out = self._transform(z)
+        return out if subset is None else out[:, list(subset)]

@@ -26,9 +26,7 @@ def _accepts_input(func: Callable) -> bool:
     except (TypeError, ValueError):  # builtins, some C callables
         return False
     positional = [
-        p
-        for p in params
-        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+        p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
     ]
     has_varargs = any(p.kind == p.VAR_POSITIONAL for p in params)
     return has_varargs or len(positional) >= 3

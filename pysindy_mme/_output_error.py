@@ -56,7 +56,11 @@ def batch_simulate(rhs, x0, t, u=None, substeps: int = 2) -> np.ndarray:
             if u is None:
                 ua = um = ub = None
             else:
-                frac0, frach, frac1 = s / substeps, (s + 0.5) / substeps, (s + 1) / substeps
+                frac0, frach, frac1 = (
+                    s / substeps,
+                    (s + 0.5) / substeps,
+                    (s + 1) / substeps,
+                )
                 ua = u[k] + frac0 * (u[k + 1] - u[k])
                 um = u[k] + frach * (u[k + 1] - u[k])
                 ub = u[k] + frac1 * (u[k + 1] - u[k])
@@ -117,8 +121,9 @@ class OutputErrorProblem:
     ----------
     base_rhs : callable ``(x (B, n), s, u_s) -> (B, n)``
         The assumed model, vectorised over rows.
-    features : callable ``z (B, n + m) -> (B, P)``
-        The selected library columns (``z`` = states then inputs).
+    features : callable ``(z (B, n + m), columns) -> (B, len(columns))``
+        Evaluates the given candidate columns (``z`` = states then inputs);
+        only the columns some slot uses are ever evaluated.
     slots : list of (state, feature) pairs
         Which coefficient each fitted parameter is: ``C[state, feature]``.
     n_states : int
@@ -134,8 +139,20 @@ class OutputErrorProblem:
         (then the parameter vector is ``x0`` alone).
     """
 
-    def __init__(self, base_rhs, features, slots, n_states, measure, y, t, u,
-                 noise_cov, substeps=2, held_coefficients=None):
+    def __init__(
+        self,
+        base_rhs,
+        features,
+        slots,
+        n_states,
+        measure,
+        y,
+        t,
+        u,
+        noise_cov,
+        substeps=2,
+        held_coefficients=None,
+    ):
         self.base_rhs = base_rhs
         self.features = features
         self.slots = list(slots)
@@ -148,9 +165,14 @@ class OutputErrorProblem:
         self.mask = np.isfinite(y)
         # Whitening: L^T L = R^-1, so ||L r||^2 = r^T R^-1 r.
         self.whiten = np.linalg.cholesky(np.linalg.inv(noise_cov)).T
-        self.n_features = 0 if not self.slots else 1 + max(f for _, f in self.slots)
+        # Evaluate only the columns in use, at positions 0..len(used)-1.
+        self.used = sorted({feat for _, feat in self.slots})
+        position = {feat: k for k, feat in enumerate(self.used)}
+        self._state_pos = [(state, position[feat]) for state, feat in self.slots]
+        self.n_features = len(self.used)
         self.held = (
-            None if held_coefficients is None
+            None
+            if held_coefficients is None
             else np.asarray(held_coefficients, dtype=float)
         )
 
@@ -162,15 +184,15 @@ class OutputErrorProblem:
             params = np.hstack([params, np.tile(self.held, (params.shape[0], 1))])
         x0 = params[:, :n]
         coef = np.zeros((params.shape[0], n, max(self.n_features, 1)))
-        for j, (state, feat) in enumerate(self.slots):
-            coef[:, state, feat] = params[:, n + j]
+        for j, (state, pos) in enumerate(self._state_pos):
+            coef[:, state, pos] = params[:, n + j]
 
         def rhs(x, s, us):
             dx = self.base_rhs(x, s, us)
             if self.slots:
                 z = x if us is None else np.hstack([x, np.tile(us, (x.shape[0], 1))])
-                theta = self.features(z)
-                dx = dx + np.einsum("bp,bnp->bn", theta, coef[:, :, : theta.shape[1]])
+                theta = self.features(z, self.used)
+                dx = dx + np.einsum("bp,bnp->bn", theta, coef)
             return dx
 
         return batch_simulate(rhs, x0, self.t, self.u, self.substeps)

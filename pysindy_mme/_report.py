@@ -48,13 +48,15 @@ def format_discovery(res) -> str:
     for j, name in enumerate(res.channel_names):
         r = resid[:, j]
         worst = int(np.nanargmax(np.abs(r))) if np.any(np.isfinite(r)) else 0
-        rows.append([
-            name,
-            f"{res.gain.rmse_assumed[j]:.4g}",
-            f"{res.gain.noise_floor[j]:.4g}",
-            f"{res.gain.rmse_assumed[j] / res.gain.noise_floor[j]:.3g}x",
-            f"{r[worst]:+.3g} at t = {t[worst]:.3g}",
-        ])
+        rows.append(
+            [
+                name,
+                f"{res.gain.rmse_assumed[j]:.4g}",
+                f"{res.gain.noise_floor[j]:.4g}",
+                f"{res.gain.rmse_assumed[j] / res.gain.noise_floor[j]:.3g}x",
+                f"{r[worst]:+.3g} at t = {t[worst]:.3g}",
+            ]
+        )
     add("Simulation of the assumed model (initial state fitted) against the data:")
     add(format_table(["channel", "RMSE", "noise", "RMSE/noise", "largest error"], rows))
     verdict = (
@@ -73,7 +75,12 @@ def format_discovery(res) -> str:
         f"measurement-minus-estimate covariance / noise = {ratio}."
     )
     rows = [
-        [name, f"{s['rms_d']:.4g}", f"{s['rms_dynamics']:.4g}", f"{100 * s['share']:.1f}%"]
+        [
+            name,
+            f"{s['rms_d']:.4g}",
+            f"{s['rms_dynamics']:.4g}",
+            f"{100 * s['share']:.1f}%",
+        ]
         for name, s in res.d_summary.items()
     ]
     add(format_table(["state", "rms d(t)", "rms dx/dt", "share missed"], rows))
@@ -93,7 +100,9 @@ def format_discovery(res) -> str:
     if res.term_estimates:
         rows = [
             [
-                te.state, te.feature, f"{te.coefficient:+.4f}",
+                te.state,
+                te.feature,
+                f"{te.coefficient:+.4f}",
                 f"[{te.ci_low:+.4f}, {te.ci_high:+.4f}]",
                 f"{te.regression_coefficient:+.4f}",
                 "n/a" if not np.isfinite(te.partial_f) else f"{te.partial_f:.4g}",
@@ -101,10 +110,20 @@ def format_discovery(res) -> str:
             ]
             for te in res.term_estimates
         ]
-        add(format_table(
-            ["eq.", "term", "coef (refit)", "95% CI", "coef (d regr.)", "partial F", "p"],
-            rows,
-        ))
+        add(
+            format_table(
+                [
+                    "eq.",
+                    "term",
+                    "coef (refit)",
+                    "95% CI",
+                    "coef (d regr.)",
+                    "partial F",
+                    "p",
+                ],
+                rows,
+            )
+        )
     if res.pruned_terms:
         add(
             "Proposed by the regression of d(t) but not confirmed against the "
@@ -143,8 +162,11 @@ def format_discovery(res) -> str:
     rows = []
     for j, name in enumerate(g.channel_names):
         row = [
-            name, f"{g.rmse_assumed[j]:.4g}", f"{g.rmse_extended[j]:.4g}",
-            f"{g.ratio[j]:.3g}x", f"{g.noise_floor[j]:.4g}",
+            name,
+            f"{g.rmse_assumed[j]:.4g}",
+            f"{g.rmse_extended[j]:.4g}",
+            f"{g.ratio[j]:.3g}x",
+            f"{g.noise_floor[j]:.4g}",
         ]
         if g.validation_rmse_assumed is not None:
             row += [
@@ -176,6 +198,8 @@ def _terms_text(terms: dict) -> str:
     for k, (name, c) in enumerate(terms.items()):
         sign = "-" if c < 0 else ("+" if k else "")
         sep = " " if k else ""
-        parts.append(f"{sep}{sign}{' ' if k else ''}{abs(c):.4f}"
-                     + ("" if name == "1" else f" {name}"))
+        parts.append(
+            f"{sep}{sign}{' ' if k else ''}{abs(c):.4f}"
+            + ("" if name == "1" else f" {name}")
+        )
     return "".join(parts)

@@ -34,7 +34,9 @@ def load_model(spec: str):
     path = Path(path_text)
     if not path.is_file():
         raise UsageError(f"--model: file {path} does not exist")
-    module_spec = importlib.util.spec_from_file_location(f"_user_model_{path.stem}", path)
+    module_spec = importlib.util.spec_from_file_location(
+        f"_user_model_{path.stem}", path
+    )
     if module_spec is None or module_spec.loader is None:
         raise UsageError(f"--model: cannot load {path} as Python")
     module = importlib.util.module_from_spec(module_spec)
@@ -118,8 +120,10 @@ def _write_outputs(result, out: Path, x_true=None, d_true=None) -> list:
 
         plt = plotting._pyplot()
     except ImportError:
-        print("matplotlib not installed: no figures (pip install 'pysindy-mme[plot]')",
-              file=sys.stderr)
+        print(
+            "matplotlib not installed: no figures (pip install 'pysindy-mme[plot]')",
+            file=sys.stderr,
+        )
         return written
     n, q = len(result.state_names), len(result.error_states)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n), squeeze=False)
@@ -159,10 +163,15 @@ def run_demo(args) -> int:
         f"from x0 = {list(validation_x0)}.\n"
     )
     result = discover(
-        data.y, data.t,
-        assumed_model=system.assumed_model, n_states=2, measured=[0],
-        noise_variance=system.noise_variance, error_states=[1],
-        feature_library=_library(args.library, 3), feature_names=["x1", "x2"],
+        data.y,
+        data.t,
+        assumed_model=system.assumed_model,
+        n_states=2,
+        measured=[0],
+        noise_variance=system.noise_variance,
+        error_states=[1],
+        feature_library=_library(args.library, 3),
+        feature_names=["x1", "x2"],
         validation=(val_data.y, val_data.t),
         assumed_equations=["x2", "0"],
     )
@@ -197,7 +206,8 @@ def run_discover(args) -> int:
     inputs = _split(args.inputs)
     u = (
         np.column_stack([_column(header, data, c, "--inputs") for c in inputs])
-        if inputs else None
+        if inputs
+        else None
     )
     if u is not None and np.any(~np.isfinite(u)):
         raise UsageError("--inputs: input columns must not have missing values")
@@ -217,13 +227,16 @@ def run_discover(args) -> int:
             ) from None
     try:
         result = discover(
-            y, t,
-            assumed_model=f, n_states=len(states),
+            y,
+            t,
+            assumed_model=f,
+            n_states=len(states),
             measured=[states.index(n) for n in measured],
             noise_variance=noise,
             error_states=[states.index(n) for n in error_states],
             feature_library=_library(args.library, args.degree),
-            feature_names=states + inputs, u=u,
+            feature_names=states + inputs,
+            u=u,
         )
     except (ValueError, TypeError) as exc:
         raise UsageError(str(exc)) from None
@@ -243,18 +256,26 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="the paper's Van der Pol study")
     demo.add_argument("--out", default="mme_demo_output", help="folder for figures")
     demo.add_argument("--seed", type=int, default=0, help="noise seed")
-    demo.add_argument("--library", default="poly", choices=["poly", "power"],
-                      help="poly: degree-3 polynomials; power: the paper's Table I")
+    demo.add_argument(
+        "--library",
+        default="poly",
+        choices=["poly", "power"],
+        help="poly: degree-3 polynomials; power: the paper's Table I",
+    )
     disc = sub.add_parser("discover", help="your CSV and your model")
     disc.add_argument("data", help="CSV with a header, a time column, measured columns")
-    disc.add_argument("--model", required=True,
-                      help="FILE.py:FUNCTION, a vectorised f(x, t) or f(x, t, u)")
+    disc.add_argument(
+        "--model",
+        required=True,
+        help="FILE.py:FUNCTION, a vectorised f(x, t) or f(x, t, u)",
+    )
     disc.add_argument("--states", required=True, help="state names, comma separated")
     disc.add_argument("--measured", help="measured states (CSV columns); default all")
     disc.add_argument("--time", default="t", help="time column (default 't')")
     disc.add_argument("--inputs", help="input columns, comma separated")
-    disc.add_argument("--noise-variance", default="auto",
-                      help="measurement noise variance or 'auto'")
+    disc.add_argument(
+        "--noise-variance", default="auto", help="measurement noise variance or 'auto'"
+    )
     disc.add_argument("--error-states", help="states whose equation may be wrong")
     disc.add_argument("--library", default="poly", choices=["poly", "power"])
     disc.add_argument("--degree", type=int, default=3, help="polynomial degree")

@@ -25,6 +25,7 @@ from scipy import stats
 from sklearn.base import clone
 
 from . import _validation as val
+from ._confirm import Confirmation, confirm_terms, make_problem_factory
 from ._features import SelectedFeatures
 from ._model import as_model_function
 from ._output_error import OutputErrorProblem, OutputErrorResult
@@ -253,8 +254,7 @@ def _check_optimizer(optimizer):
         return FloatingFStepwise()
     if not (hasattr(optimizer, "fit") and hasattr(optimizer, "get_params")):
         raise TypeError(
-            "optimizer must be a pysindy optimizer, got "
-            f"{type(optimizer).__name__}"
+            f"optimizer must be a pysindy optimizer, got {type(optimizer).__name__}"
         )
     return optimizer
 
@@ -384,7 +384,8 @@ def discover(
     n_samples = y.shape[0]
     t = val.check_time(t, n_samples, "t")
     measured_idx = (
-        np.arange(n_states) if measured is None
+        np.arange(n_states)
+        if measured is None
         else val.check_indices(measured, n_states, "measured")
     )
     m = measured_idx.size
@@ -396,7 +397,8 @@ def discover(
     if np.all(np.isnan(y)):
         raise ValueError("y contains no finite measurement")
     error_idx = (
-        np.arange(n_states) if error_states is None
+        np.arange(n_states)
+        if error_states is None
         else val.check_indices(error_states, n_states, "error_states")
     )
     alpha = val.check_probability(alpha, "alpha")
@@ -478,15 +480,6 @@ def discover(
         uu = None if us is None else np.tile(us, (x.shape[0], 1))
         return f(x, tt, uu)
 
-    assumed_problem = OutputErrorProblem(
-        base_rhs, None, [], n_states, measure, y, t, u, noise_cov
-    )
-    assumed_fit = assumed_problem.fit(x_hat[0])
-    assumed_sim = assumed_problem._simulate(assumed_fit.params[None])[0]
-    n_res = assumed_fit.n_residuals
-    chi2_dof = max(n_res - n_states, 1)
-    chi2_p = float(stats.chi2.sf(assumed_fit.cost, chi2_dof))
-
     # ---- 3. stepwise regression of d on the library ----
     z_hat = x_hat if u is None else np.hstack([x_hat, u])
     library = clone(library).fit(z_hat)
@@ -494,7 +487,16 @@ def discover(
         theta = np.asarray(library.transform(z_hat))
     lib_names = list(library.get_feature_names(feature_names))
     opt = clone(optimizer)
-    opt.fit(theta, d_hat[:, error_idx])
+    target_names = [state_names[i] for i in error_idx]
+    if _accepts_names(opt):
+        opt.fit(
+            theta,
+            d_hat[:, error_idx],
+            feature_names=lib_names,
+            target_names=target_names,
+        )
+    else:
+        opt.fit(theta, d_hat[:, error_idx])
     reg_coef = np.zeros((n_states, theta.shape[1]))
     reg_coef[error_idx] = np.asarray(opt.coef_).reshape(error_idx.size, -1)
     reg_intercept = np.zeros(n_states)
@@ -511,89 +513,64 @@ def discover(
         if reg_intercept[i] != 0:
             candidate_terms[state_names[i]]["1"] = float(reg_intercept[i])
 
-    # slots: (state, column) pairs to refit; the column P stands for the
-    # optimizer's own intercept (a constant feature).
-    active = np.flatnonzero(np.any(reg_coef != 0, axis=0))
-    columns = list(active)
-    const_col = None
-    if np.any(reg_intercept != 0):
-        const_col = len(columns)
-    slots, start = [], []
-    for i in error_idx:
-        for k, j in enumerate(active):
-            if reg_coef[i, j] != 0:
-                slots.append((int(i), k))
-                start.append(reg_coef[i, j])
+    # Proposals as (state, column) slots, in the order the regression chose
+    # them; column index len(columns) stands for the optimizer's own intercept.
+    columns = [int(j) for j in np.flatnonzero(np.any(reg_coef != 0, axis=0))]
+    const_col = len(columns) if np.any(reg_intercept != 0) else None
+    proposals, start = [], []
+    for k_target, i in enumerate(error_idx):
+        for j in _entry_order(opt, k_target, reg_coef[i], theta):
+            proposals.append((int(i), columns.index(j)))
+            start.append(float(reg_coef[i, j]))
         if reg_intercept[i] != 0:
-            slots.append((int(i), const_col))
-            start.append(reg_intercept[i])
+            proposals.append((int(i), const_col))
+            start.append(float(reg_intercept[i]))
     selected = SelectedFeatures(library, feature_names, columns, z_hat)
 
-    def features(z):
-        th = selected(z)
-        if const_col is not None:
-            th = np.hstack([th, np.ones((z.shape[0], 1))])
+    def features(z, cols):
+        # column const_col (one past the library columns) is the constant
+        lib_cols = [k for k in cols if k != const_col]
+        th = selected(z, lib_cols)
+        if const_col is not None and const_col in cols:
+            th = np.insert(th, list(cols).index(const_col), 1.0, axis=1)
         return th
 
-    # ---- 4. refit against the measurements, prune, test ----
-    pruned = []
-    extended_fit = None
-    correction_p = float("nan")
-    final_slots, final_coef = [], np.array([])
-    if slots:
-        params0 = np.concatenate([x_hat[0], start])
-        problem = OutputErrorProblem(
-            base_rhs, features, slots, n_states, measure, y, t, u, noise_cov
+    # The refits integrate with fixed-step RK4: enough substeps per sample
+    # interval to resolve the fastest time scale of the regression model.
+    substeps = _rk4_substeps(
+        f, features, reg_coef, reg_intercept, columns, x_hat, z_hat, t, u
+    )
+    make_problem = make_problem_factory(
+        base_rhs, features, n_states, measure, y, t, u, noise_cov, substeps
+    )
+    assumed_fit = make_problem([]).fit(x_hat[0])
+    assumed_sim = make_problem([])._simulate(assumed_fit.params[None])[0]
+    n_res = assumed_fit.n_residuals
+    chi2_dof = max(n_res - n_states, 1)
+    chi2_p = float(stats.chi2.sf(assumed_fit.cost, chi2_dof))
+
+    # ---- 4. confirm the proposals against the measurements ----
+    def describe(slot):
+        return _slot_name(slot, columns, const_col, state_names, lib_names)
+
+    if refit and proposals:
+        confirmation = confirm_terms(
+            make_problem, proposals, start, assumed_fit, n_states, alpha, describe
         )
-        if refit:
-            extended_fit = problem.fit(params0)
-            if not extended_fit.converged:
-                notes.append("the output-error refit did not converge")
-            if not np.isfinite(extended_fit.cost) or (
-                extended_fit.cost > extended_fit.initial_cost
-            ):
-                notes.append("the refit made the fit worse; regression values kept")
-                extended_fit = _evaluate_only(problem, params0)
-            # prune: drop the least significant refitted term until all pass.
-            while slots:
-                coefs = extended_fit.params[n_states:]
-                se = extended_fit.std_errors[n_states:]
-                dof = max(extended_fit.n_residuals - extended_fit.params.size, 1)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    pvals = 2 * stats.t.sf(np.abs(coefs / se), dof)
-                pvals = np.where(np.isfinite(pvals), pvals, 1.0)
-                worst = int(np.argmax(pvals))
-                if pvals[worst] <= alpha:
-                    break
-                pruned.append(_slot_name(slots[worst], columns, const_col,
-                                         state_names, lib_names))
-                keep = [k for k in range(len(slots)) if k != worst]
-                slots = [slots[k] for k in keep]
-                if not slots:
-                    extended_fit = None
-                    break
-                problem = OutputErrorProblem(
-                    base_rhs, features, slots, n_states, measure, y, t, u, noise_cov
-                )
-                p_start = np.concatenate([extended_fit.params[:n_states], coefs[keep]])
-                extended_fit = problem.fit(p_start)
-        else:
-            extended_fit = _evaluate_only(problem, params0)
-        if extended_fit is not None:
-            n_extra = len(slots)
-            dof_e = max(extended_fit.n_residuals - n_states - n_extra, 1)
-            f_stat = ((assumed_fit.cost - extended_fit.cost) / n_extra) / (
-                extended_fit.cost / dof_e
-            )
-            correction_p = float(stats.f.sf(f_stat, n_extra, dof_e))
-            if correction_p > alpha:
-                pruned.extend(
-                    _slot_name(s, columns, const_col, state_names, lib_names)
-                    for s in slots
-                )
-                slots, extended_fit = [], None
-            else:
-                final_slots, final_coef = slots, extended_fit.params[n_states:]
+    else:
+        # No refit: keep the regression's terms and values as they are.
+        fixed = make_problem(proposals)
+        params0 = np.concatenate([assumed_fit.params, start])
+        confirmation = Confirmation(
+            list(proposals), _evaluate_only(fixed, params0) if proposals else None
+        )
+    final_slots = confirmation.slots
+    extended_fit = confirmation.fit
+    final_coef = (
+        np.array([]) if extended_fit is None else extended_fit.params[n_states:]
+    )
+    pruned = [f"{describe(s)} ({why})" for s, why in confirmation.rejected]
+    correction_p = confirmation.correction_p_value
 
     # ---- the extended model ----
     coef = np.zeros((n_states, theta.shape[1]))
@@ -604,11 +581,17 @@ def discover(
         else:
             coef[i, columns[k]] = c
     extended = ExtendedModel(
-        f, library, coef, state_names, input_names, intercept=intercept,
-        assumed_equations=assumed_equations, z_reference=z_hat,
+        f,
+        library,
+        coef,
+        state_names,
+        input_names,
+        intercept=intercept,
+        assumed_equations=assumed_equations,
+        z_reference=z_hat,
     )
     if extended_fit is not None:
-        extended_sim = problem._simulate(extended_fit.params[None])[0]
+        extended_sim = make_problem(final_slots)._simulate(extended_fit.params[None])[0]
     else:
         extended_sim = assumed_sim
 
@@ -633,10 +616,14 @@ def discover(
                     std_error=float(se[s]),
                     ci_low=float(ci[s, 0]),
                     ci_high=float(ci[s, 1]),
-                    partial_f=_partial_f(opt, list(error_idx).index(i),
-                                         None if k == const_col else columns[k]),
+                    partial_f=_partial_f(
+                        opt,
+                        list(error_idx).index(i),
+                        None if k == const_col else columns[k],
+                    ),
                     p_value=float(2 * stats.t.sf(abs(c / se[s]), dof))
-                    if se[s] > 0 else 0.0,
+                    if se[s] > 0
+                    else 0.0,
                 )
             )
 
@@ -655,12 +642,21 @@ def discover(
         x0_guess = np.asarray(mme_v.smoothed_x_)[0]
         rmse_v = []
         for slots_v, coefs_v in (([], np.array([])), (final_slots, final_coef)):
-            args = (base_rhs, features, slots_v, n_states, measure, y_v, t_v, u_v,
-                    noise_cov)
-            x0_v = _fit_initial_state(args, x0_guess, coefs_v)
-            sim_v = OutputErrorProblem(*args, held_coefficients=coefs_v)._simulate(
-                x0_v[None]
-            )[0]
+            problem_v = OutputErrorProblem(
+                base_rhs,
+                features,
+                slots_v,
+                n_states,
+                measure,
+                y_v,
+                t_v,
+                u_v,
+                noise_cov,
+                substeps=substeps,
+                held_coefficients=coefs_v,
+            )
+            x0_v = problem_v.fit(x0_guess).params
+            sim_v = problem_v._simulate(x0_v[None])[0]
             rmse_v.append(_rmse(y_v, measure(sim_v)))
         gain.validation_rmse_assumed, gain.validation_rmse_extended = rmse_v
 
@@ -679,22 +675,106 @@ def discover(
     for note in notes:
         warnings.warn(note, DiscoveryWarning, stacklevel=2)
     return Discovery(
-        t=t, y=y, u=u, state_names=state_names, input_names=input_names,
-        channel_names=channel_names, measured=measured_idx, error_states=error_idx,
-        noise_cov=noise_cov, alpha=alpha, mme=mme, optimizer=opt,
-        library_feature_names=lib_names, regression_coef=reg_coef,
-        assumed_fit=assumed_fit, assumed_simulation=assumed_sim,
-        consistency_chi2=float(assumed_fit.cost), consistency_dof=int(chi2_dof),
-        consistency_p_value=chi2_p, candidate_terms=candidate_terms,
-        pruned_terms=pruned, extended_fit=extended_fit,
-        extended_simulation=extended_sim, extended_model=extended,
-        correction_p_value=correction_p, terms=terms, term_estimates=estimates,
-        gain=gain, d_summary=d_summary, warnings=notes,
+        t=t,
+        y=y,
+        u=u,
+        state_names=state_names,
+        input_names=input_names,
+        channel_names=channel_names,
+        measured=measured_idx,
+        error_states=error_idx,
+        noise_cov=noise_cov,
+        alpha=alpha,
+        mme=mme,
+        optimizer=opt,
+        library_feature_names=lib_names,
+        regression_coef=reg_coef,
+        assumed_fit=assumed_fit,
+        assumed_simulation=assumed_sim,
+        consistency_chi2=float(assumed_fit.cost),
+        consistency_dof=int(chi2_dof),
+        consistency_p_value=chi2_p,
+        candidate_terms=candidate_terms,
+        pruned_terms=pruned,
+        extended_fit=extended_fit,
+        extended_simulation=extended_sim,
+        extended_model=extended,
+        correction_p_value=correction_p,
+        terms=terms,
+        term_estimates=estimates,
+        gain=gain,
+        d_summary=d_summary,
+        warnings=notes,
     )
 
 
 # --------------------------------------------------------------------------- #
 # small helpers
+
+
+def _accepts_names(optimizer) -> bool:
+    """Whether ``optimizer.fit`` takes ``feature_names`` (FloatingFStepwise)."""
+    import inspect
+
+    try:
+        return "feature_names" in inspect.signature(optimizer.fit).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _entry_order(opt, target, coef_row, theta):
+    """Columns of ``coef_row``'s support, strongest evidence first.
+
+    For FloatingFStepwise the order of their last entry in ``steps_``; for
+    other optimizers the size of the standardised coefficient.
+    """
+    support = [int(j) for j in np.flatnonzero(coef_row)]
+    steps = getattr(opt, "steps_", None)
+    if steps:
+        entered = {}
+        for step in steps[target]:
+            if step.action == "add":
+                entered[int(step.feature)] = step.iteration
+        return sorted(support, key=lambda j: (entered.get(j, np.inf), j))
+    with np.errstate(all="ignore"):
+        scale = np.nanstd(theta[:, support], axis=0) if support else []
+    strength = [abs(coef_row[j]) * s for j, s in zip(support, scale)]
+    return [support[k] for k in np.argsort(strength)[::-1]]
+
+
+def _rk4_substeps(f, features, reg_coef, reg_intercept, columns, x_hat, z_hat, t, u):
+    """RK4 steps per interval so that ``h * spectral radius <= 0.5``.
+
+    The spectral radius of the Jacobian of the regression model (assumed model
+    plus proposed correction) along the MME trajectory sets the fastest time
+    scale; RK4 is accurate to ~1e-5 relative per step at ``h rho = 0.5``.
+    """
+    del reg_intercept  # a constant does not change the Jacobian
+    n = x_hat.shape[1]
+    stride = max(1, x_hat.shape[0] // 200)  # a sample of points is enough
+    xs, ts = x_hat[::stride], t[::stride]
+    us = None if u is None else u[::stride]
+    coef = reg_coef[:, columns] if columns else np.zeros((n, 0))
+
+    def model(x):
+        out = f(x, ts, us)
+        if columns:
+            z = x if us is None else np.hstack([x, us])
+            out = out + features(z, range(len(columns))) @ coef.T
+        return out
+
+    jac = np.empty((xs.shape[0], n, n))
+    h = 1e-6 * np.maximum(np.abs(xs), 1.0)
+    for j in range(n):
+        xp, xm = xs.copy(), xs.copy()
+        xp[:, j] += h[:, j]
+        xm[:, j] -= h[:, j]
+        with np.errstate(all="ignore"):
+            jac[:, :, j] = (model(xp) - model(xm)) / (2 * h[:, [j]])
+    jac[~np.isfinite(jac)] = 0.0
+    rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
+    dt = float(np.max(np.diff(t)))
+    return int(min(50, max(1, np.ceil(dt * rho / 0.5))))
 
 
 def _slot_name(slot, columns, const_col, state_names, lib_names):
@@ -709,7 +789,7 @@ def _partial_f(opt, target, column):
     if tables is None or column is None:
         return float("nan")
     table = tables[target]
-    support = list(np.asarray(getattr(table, "support", [])))
+    support = list(np.asarray(getattr(table, "features", ())))
     partial = np.asarray(getattr(table, "partial_f", []))
     if column in support and len(partial) == len(support):
         return float(partial[support.index(column)])
@@ -727,9 +807,3 @@ def _evaluate_only(problem, params):
     cost = float(r @ r) if np.all(np.isfinite(r)) else np.inf
     cov = np.full((params.size, params.size), np.nan)
     return OutputErrorResult(params, cov, cost, cost, r.size, False, "not refitted")
-
-
-def _fit_initial_state(problem_args, x0_guess, coefs):
-    """Best initial state with the correction coefficients held fixed."""
-    problem = OutputErrorProblem(*problem_args, held_coefficients=coefs)
-    return problem.fit(x0_guess).params

@@ -45,11 +45,23 @@ def plot_states(res, axes, x_true=None):
             ax.plot(t, res.y[:, j], ".", ms=2.5, color="0.6", label="measured")
         if x_true is not None:
             ax.plot(t, x_true[:, i], color="k", lw=1.0, label="truth")
-        ax.plot(t, res.assumed_simulation[:, i], "--", color="tab:red", lw=1.2,
-                label="assumed model")
+        ax.plot(
+            t,
+            res.assumed_simulation[:, i],
+            "--",
+            color="tab:red",
+            lw=1.2,
+            label="assumed model",
+        )
         ax.plot(t, x_hat[:, i], color="tab:blue", lw=1.2, label="MME estimate")
-        ax.plot(t, res.extended_simulation[:, i], ":", color="tab:green", lw=1.8,
-                label="extended model")
+        ax.plot(
+            t,
+            res.extended_simulation[:, i],
+            ":",
+            color="tab:green",
+            lw=1.8,
+            label="extended model",
+        )
         state = "measured" if i in list(res.measured) else "not measured"
         ax.set_ylabel(name)
         ax.set_title(f"{name} ({state})", fontsize=9, loc="left")
@@ -73,8 +85,14 @@ def plot_model_error(res, axes, d_true=None):
         if d_true is not None:
             ax.plot(t, d_true[:, i], color="k", lw=1.0, label="true model error")
         ax.plot(t, d_hat[:, i], color="tab:blue", lw=1.2, label="MME estimate d(t)")
-        ax.plot(t, corr[:, i], "--", color="tab:green", lw=1.5,
-                label="identified correction")
+        ax.plot(
+            t,
+            corr[:, i],
+            "--",
+            color="tab:green",
+            lw=1.5,
+            label="identified correction",
+        )
         ax.set_ylabel(f"d ({name}')")
         ax.set_title(f"model error in {name}'", fontsize=9, loc="left")
         ax.legend(fontsize=7, loc="upper right")
@@ -85,8 +103,14 @@ def plot_stepwise_history(res, ax):
     """Partial F of each step and the threshold, per iteration (paper's Fig. 4)."""
     steps_per_target = getattr(res.optimizer, "steps_", None)
     if not steps_per_target:
-        ax.text(0.5, 0.5, "no stepwise history (optimizer is not FloatingFStepwise)",
-                ha="center", va="center", transform=ax.transAxes)
+        ax.text(
+            0.5,
+            0.5,
+            "no stepwise history (optimizer is not FloatingFStepwise)",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
         return
     markers = {"add": "^", "remove": "v"}
     for k, steps in enumerate(steps_per_target):
@@ -100,20 +124,27 @@ def plot_stepwise_history(res, ax):
         for action, marker in markers.items():
             sel = np.array([s.action == action for s in steps])
             if np.any(sel):
-                ax.scatter(it[sel], f[sel], marker=marker, s=30,
-                           label=f"{action} ({target}')")
+                ax.scatter(
+                    it[sel], f[sel], marker=marker, s=30, label=f"{action} ({target}')"
+                )
         for s in steps:
-            name = getattr(s, "feature_name", None) or str(s.feature)
-            ax.annotate(name, (s.iteration, s.partial_f), fontsize=6,
-                        xytext=(2, 3), textcoords="offset points")
+            name = res.library_feature_names[s.feature]
+            ax.annotate(
+                name,
+                (s.iteration, s.partial_f),
+                fontsize=6,
+                xytext=(2, 3),
+                textcoords="offset points",
+            )
         phase2 = [s.iteration for s in steps if s.phase == 2]
         if phase2:
             ax.axvline(min(phase2) - 0.5, color="0.5", ls=":", lw=1)
     ax.set_yscale("log")
     ax.set_xlabel("iteration")
     ax.set_ylabel("partial F")
-    ax.set_title("stepwise history (dotted line: Phase II begins)", fontsize=9,
-                 loc="left")
+    ax.set_title(
+        "stepwise history (dotted line: Phase II begins)", fontsize=9, loc="left"
+    )
     ax.legend(fontsize=7)
 
 

@@ -355,9 +355,7 @@ def lorenz(
 
     def assumed_model(x, t):
         x1, x2, x3 = x[:, 0], x[:, 1], x[:, 2]
-        return np.column_stack(
-            [sigma * (x2 - x1), rho * x1 - x2, x1 * x2 - beta * x3]
-        )
+        return np.column_stack([sigma * (x2 - x1), rho * x1 - x2, x1 * x2 - beta * x3])
 
     return HiddenEffectSystem(
         name="lorenz",

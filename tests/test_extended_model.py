@@ -107,8 +107,15 @@ def test_output_error_refit_is_unbiased_and_its_errors_are_honest():
             return system.assumed_model(x, np.full(len(x), s))
 
         problem = OutputErrorProblem(
-            base, sel, [(1, 0), (1, 1), (1, 2)], 2, lambda x: x[..., [0]],
-            data.y, data.t, None, np.eye(1) * 0.01,
+            base,
+            sel,
+            [(1, 0), (1, 1), (1, 2)],
+            2,
+            lambda x: x[..., [0]],
+            data.y,
+            data.t,
+            None,
+            np.eye(1) * 0.01,
         )
         fit = problem.fit(np.array([1.05, 0.1, -0.7, 0.7, -0.7]))
         assert fit.converged
