@@ -113,12 +113,17 @@ class MME(BaseDifferentiation):
         Weight of the model-error integral. ``"auto"`` (the paper): a scalar
         times the identity chosen so that the mean over measured channels of
         ``mean(r_j^2) / R_jj`` (generally ``trace(R^-1 S) / m``) equals 1, the
-        covariance constraint. It ignores the degrees of freedom the
-        estimate uses, so it smooths slightly less than optimal. ``"ml"``: a
-        scalar maximising the restricted marginal likelihood of the data
-        (flat prior on ``x_0``, ``d`` white noise of intensity ``W^-1``), the
-        statistically principled choice when ``R`` is known and the model
-        error behaves like white-noise-driven randomness. A number or matrix
+        covariance constraint. Residuals of a fit that uses ``edf`` degrees of
+        freedom have expected square ``R (1 - edf / N)``, so asking for ``R``
+        itself smooths somewhat more than needed; and since the ratio is flat
+        in W, the sampling scatter of the noise's own variance (about
+        ``sqrt(2 / N)``) moves W a lot (on the paper's Van der Pol record,
+        0.3 to 22 over 20 noise seeds). ``"ml"``: a scalar maximising the
+        restricted marginal likelihood of the data (flat prior on ``x_0``,
+        ``d`` white noise of intensity ``W^-1``); stable across noise seeds
+        and the principled choice when ``R`` is known and the model error
+        really is rough, white-noise-like; for a smooth model error it
+        smooths less than the covariance constraint. A number or matrix
         fixes ``W``.
     target : {"error", "derivative"}
         What calling the estimator returns: the model error ``d`` (shape
@@ -634,7 +639,7 @@ class MME(BaseDifferentiation):
                     criterion,
                     bounds=(left, right),
                     method="bounded",
-                    options={"xatol": 1e-3},
+                    options={"xatol": 1e-2},
                 )
                 best = float(opt.x) if opt.fun <= fm else mid
         res = run(best)
