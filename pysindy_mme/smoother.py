@@ -442,16 +442,23 @@ class MMESmoother:
         if self._band is None:
             self._band = np.empty((N, 2 * n, ldab))
         abT = self._band
-        abT.fill(0.0)
-        for b in range(n):
-            abT[:, b, diag - b : diag - b + n] = Q[:, :, b]
-            abT[:-1, b, diag + n - b : diag + 2 * n - b] = A[:, :, b]
-            abT[:-1, n + b, diag - n - b : diag - b] = A[:, b, :]
-            abT[:-1, n + b, diag - b : diag - b + n] = -S[:, :, b]
-            # (lam_k row b, x_{k+1} col b) and (x_{k+1} row b, lam_k col b)
-            abT[1:, b, diag - n] = -1.0
-            abT[:-1, n + b, diag + n] = -1.0
-            abT[-1, n + b, diag] = 1.0  # dummy multiplier of the last block
+        K = N - 1
+        # Block by block, so each block stays in cache over the passes.
+        for lo in range(0, N, self._CHUNK):
+            hi = min(lo + self._CHUNK, N)
+            blk = abT[lo:hi]
+            blk.fill(0.0)
+            m = min(hi, K) - lo  # rows of this block that have an interval
+            for b in range(n):
+                blk[:, b, diag - b : diag - b + n] = Q[lo:hi, :, b]
+                blk[:m, b, diag + n - b : diag + 2 * n - b] = A[lo : lo + m, :, b]
+                blk[:m, n + b, diag - n - b : diag - b] = A[lo : lo + m, b, :]
+                blk[:m, n + b, diag - b : diag - b + n] = -S[lo : lo + m, :, b]
+                # (x_{k+1} row b, lam_k col b) and (lam_k row b, x_{k+1} col b)
+                blk[:m, n + b, diag + n] = -1.0
+                blk[1 if lo == 0 else 0 :, b, diag - n] = -1.0
+        abT[-1, n:, :] = 0.0
+        abT[-1, np.arange(n, 2 * n), diag] = 1.0  # dummy multiplier, last block
         ab = abT.reshape(N * 2 * n, ldab).T
         lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
         if info < 0:  # pragma: no cover - a bug, not a user error
