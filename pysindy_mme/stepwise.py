@@ -22,6 +22,13 @@ the current residual, from which every candidate's partial F-ratio follows in
 k^2 * n_candidates)`` for ``k`` functions in the model (see :class:`_Path`).
 The library is never copied.
 
+Units: partial F-ratios do not depend on the scale of a column or of the
+target, but sums of squares of values near ``1e+-154`` overflow or underflow.
+Every library column and every target is therefore multiplied by a power of
+two that brings its largest magnitude into ``[0.5, 1)`` (exact in floating
+point, applied on the fly: the library is still not copied), so that data in
+any units select the same terms; coefficients are converted back at the end.
+
 Cycles: the floating threshold can send the selection round a loop (e.g.
 removing a term lowers the strongest partial F-ratio, hence the threshold,
 and the term re-enters). Decisions depend only on (phase, model), so a
@@ -34,7 +41,7 @@ from __future__ import annotations
 
 import numbers
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -60,6 +67,21 @@ _BLOCK_ELEMENTS = 1 << 20
 # no further function may enter.
 _EXACT_FIT_RTOL = 1e-12
 _EPS = np.finfo(float).eps
+# Columns whose raw products x^T v could overflow (|x| * n beyond 2**1000) or
+# whose values are deep in the subnormal range cannot be used reliably.
+_HUGE = 2.0**1000
+_TINY = 2.0**-960
+
+
+def _pow2_scale(max_abs):
+    """Powers of two ``s`` with ``max_abs * s`` in ``[0.5, 1)``.
+
+    1 where ``max_abs`` is 0 or not finite.
+    """
+    max_abs = np.asarray(max_abs, dtype=float)
+    ok = np.isfinite(max_abs) & (max_abs > 0)
+    _, exponent = np.frexp(np.where(ok, max_abs, 1.0))
+    return np.where(ok, np.ldexp(1.0, -exponent), 1.0)
 
 
 class StepwiseCycleWarning(UserWarning):
@@ -134,6 +156,7 @@ class _Screen:
     mean: np.ndarray  # (p,) weighted column means
     cn2: np.ndarray  # (p,) squared norms of the centred weighted columns
     un2: np.ndarray  # (p,) squared norms of the weighted columns
+    scale: np.ndarray  # (p,) power of two each column is multiplied by
 
 
 def _xt(x, v, eligible):
@@ -149,7 +172,11 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
     Set aside: non-finite values, all-zero columns, constant columns other than
     the first (which carries the intercept), columns collinear with the
     constant, and columns collinear with an earlier column (exact duplicates
-    included; the first one is kept). One blockwise pass over ``x``.
+    included; the first one is kept), and columns too large or too small for
+    double precision. One blockwise pass over ``x``.
+
+    All statistics refer to the columns multiplied by ``scale`` (a power of
+    two per column bringing its largest magnitude into ``[0.5, 1)``).
     """
     n, p = x.shape
     w = sw**2
@@ -158,6 +185,8 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
     mean = np.zeros(p)
     cn2 = np.zeros(p)
     fprint = np.zeros(p)
+    max_abs = np.zeros(p)
+    scale = np.ones(p)
     # A fixed random direction: collinear columns have equal |fingerprint|.
     g = np.random.default_rng(20240601).standard_normal(n)
     for blk in _blocks(n, p):
@@ -166,10 +195,17 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
         finite[blk] = fin
         if not np.all(fin):
             B = np.where(fin, B, 0.0)
+        top = np.maximum(B.max(axis=0), -B.min(axis=0))
+        sc = _pow2_scale(top)
+        max_abs[blk] = top
+        scale[blk] = sc
         exact_const[blk] = fin & np.all(B == B[:1], axis=0)
-        m = (w @ B) / n_eff
-        mean[blk] = m
-        C = (B - m) * sw[:, None]  # centred, weighted: accurate for near-constants
+        with np.errstate(over="ignore", invalid="ignore"):  # "huge" columns
+            m = (w @ B) / n_eff
+            C = B - m  # centred: accurate for near-constants
+        C *= sw[:, None]
+        C *= sc  # scaled before squaring (exact: powers of two)
+        mean[blk] = m * sc
         cn2[blk] = np.einsum("ij,ij->j", C, C)
         fprint[blk] = g @ C
     un2 = np.where(finite, cn2 + n_eff * mean**2, 0.0)
@@ -181,6 +217,18 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
         excluded[int(j)] = "non-finite values"
     for j in np.flatnonzero(allzero):
         excluded[int(j)] = "all zero"
+    huge = finite & (max_abs * max(n, 1) > _HUGE)
+    tiny = finite & ~allzero & (max_abs < _TINY)
+    for j in np.flatnonzero(huge):
+        excluded[int(j)] = (
+            f"values too large for double precision (max |value| "
+            f"{max_abs[j]:.3g}); rescale the data"
+        )
+    for j in np.flatnonzero(tiny):
+        excluded[int(j)] = (
+            f"values too small for double precision (max |value| "
+            f"{max_abs[j]:.3g}); rescale the data"
+        )
     for j in np.flatnonzero(exact_const & ~allzero):
         if carrier is None:
             carrier = int(j)
@@ -190,7 +238,7 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
     near_const = finite & ~allzero & ~exact_const & (cn2 <= tolerance**2 * un2)
     for j in np.flatnonzero(near_const):
         excluded[int(j)] = "collinear with the constant"
-    ok = finite & ~allzero & ~exact_const & ~near_const
+    ok = finite & ~allzero & ~exact_const & ~near_const & ~huge & ~tiny
     fprint = np.abs(_safe_div(fprint, np.sqrt(cn2)))
 
     # Pairwise collinearity: candidate pairs have close fingerprints (within
@@ -208,8 +256,8 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
             i, j = sorted((int(order[s]), int(order[t])))
             if j in excluded:
                 continue
-            ui = (x[:, i] - mean[i]) * sw / np.sqrt(cn2[i])
-            uj = (x[:, j] - mean[j]) * sw / np.sqrt(cn2[j])
+            ui = (x[:, i] * scale[i] - mean[i]) * sw / np.sqrt(cn2[i])
+            uj = (x[:, j] * scale[j] - mean[j]) * sw / np.sqrt(cn2[j])
             resid = uj - (ui @ uj) * ui
             if np.linalg.norm(resid) < tolerance:
                 if np.array_equal(x[:, i], x[:, j]):
@@ -226,6 +274,7 @@ def _screen_columns(x, sw, n_eff, tolerance) -> _Screen:
         mean=mean,
         cn2=np.where(eligible, cn2, 0.0),
         un2=np.where(eligible, un2, 0.0),
+        scale=scale,
     )
 
 
@@ -247,10 +296,17 @@ class _Path:
     ``X^T e += (u^T X) (u^T y)`` and ``||r||^2 += (u^T X)^2``.
     Where subtracting squares would lose accuracy (a candidate nearly in the
     span of the model), ``r_j`` is recomputed explicitly (Gram-Schmidt twice).
+
+    ``X`` here is the library with each column multiplied by ``scale`` (see
+    :func:`_screen_columns`), applied on the fly; ``yw`` is the weighted
+    target already scaled to unit magnitude, and ``y_unit`` the factor that
+    converts its coefficients back to the units of the data.
     """
 
-    def __init__(self, x, sw, yw, screen: _Screen, n_eff, tolerance):
+    def __init__(self, x, sw, yw, screen: _Screen, n_eff, tolerance, y_unit=1.0):
         self.x = x
+        self.scale = screen.scale
+        self.y_unit = y_unit
         self.sw = sw
         self.yw = yw
         self.carrier = screen.carrier
@@ -290,13 +346,15 @@ class _Path:
 
     def _exact_g(self):
         """``g = X^T e`` by a product with the library (resets rounding drift)."""
-        self.g = _xt(self.x, self.sw * self.e, self.eligible)
+        self.g = _xt(self.x, self.sw * self.e, self.eligible) * self.scale
         self.g[self.in_model] = 0.0
         self.g_sse = self.sse()
 
     def coefficients(self) -> np.ndarray:
-        """Least-squares coefficients of ``[constant, support...]``."""
-        return scipy.linalg.solve_triangular(self.T, self.z)
+        """Least-squares coefficients of ``[constant, support...]`` (data units)."""
+        beta = scipy.linalg.solve_triangular(self.T, self.z) * self.y_unit
+        beta[1:] *= self.scale[self.support]
+        return beta
 
     def overall_f(self) -> float:
         """Model F-ratio MSR / MSE (eq. 10); 0 for the constant-only model."""
@@ -344,7 +402,7 @@ class _Path:
         """Recompute ``r_j`` for ``cols`` explicitly; refresh their statistics."""
         k1 = self.k + 1
         Qk = self.Q[:, :k1]
-        Xj = self.x[:, cols] * self.sw[:, None]
+        Xj = self.x[:, cols] * self.sw[:, None] * self.scale[cols]
         A = Qk.T @ Xj
         Rj = Xj - Qk @ A
         A2 = Qk.T @ Rj
@@ -357,7 +415,7 @@ class _Path:
         self._grow()
         k1 = self.k + 1
         Qk = self.Q[:, :k1]
-        xj = self.x[:, j] * self.sw
+        xj = self.x[:, j] * (self.sw * self.scale[j])
         # Gram-Schmidt twice: orthogonal to working precision even when the
         # column is nearly in the span of the model.
         a = Qk.T @ xj
@@ -376,7 +434,8 @@ class _Path:
         self.z = np.append(self.z, zq)
         self.e -= q * zq
         self.Q[:, k1] = q
-        cq = _xt(self.x, self.sw * q, self.eligible)  # the one O(n p) product
+        # the one O(n p) product
+        cq = _xt(self.x, self.sw * q, self.eligible) * self.scale
         self.C[k1] = cq
         self.support.append(j)
         self.in_model[j] = True
@@ -511,7 +570,9 @@ class FloatingFStepwise(BaseOptimizer):
         ``{column index: reason}`` for columns that can never be selected:
         non-finite values, all zero, constant (a second constant column),
         collinear with the constant, duplicate of / collinear with an earlier
-        column. They are listed in one :class:`ExcludedFeaturesWarning` per fit.
+        column, values too large (``|x| * n_samples > 2**1000``) or too small
+        (``max |x| < 2**-960``) for double precision. They are listed in one
+        :class:`ExcludedFeaturesWarning` per fit.
     constant_feature_ : int or None
         The library column that carries the intercept, if any.
     feature_names_, target_names_ : list of str or None
@@ -808,12 +869,16 @@ class FloatingFStepwise(BaseOptimizer):
         self.converged_ = True
         self.cycle_detected_ = False
         for t in range(n_targets):
-            path = _Path(x, sw, y[:, t] * sw, screen, n_eff, tol)
+            # The target in units of its largest magnitude (an exact power of
+            # two): squares can then neither overflow nor underflow.
+            y_scale = float(_pow2_scale(np.max(np.abs(y[:, t]), initial=0.0)))
+            yt = y[:, t] * y_scale
+            path = _Path(x, sw, yt * sw, screen, n_eff, tol, y_unit=1.0 / y_scale)
             steps = self._select(path, t, coef, params, n_eff)
             self.steps_.append(steps)
             self.n_iter_[t] = len(steps)
             row, icpt, table, dropped = self._final_fit(
-                path, x, y[:, t], w, screen, params, n_eff
+                path, x, yt, w, screen, params, n_eff
             )
             coef[t] = row
             intercept[t] = icpt
@@ -946,7 +1011,13 @@ class FloatingFStepwise(BaseOptimizer):
         self.history_.append(current)
 
     def _final_fit(self, path: _Path, x, y, w, screen: _Screen, params, n_eff):
-        """Coefficients on the support (accurate QR solve) and the ANOVA table."""
+        """Coefficients on the support (accurate QR solve) and the ANOVA table.
+
+        ``y`` is the target scaled like the path's (``path.y_unit`` converts
+        back). The fit runs on the support and reported columns only, each
+        multiplied by its power-of-two ``screen.scale``; the table and the
+        coefficients are then converted to the units of the data (exactly).
+        """
         support = np.sort(np.asarray(path.support, dtype=int))
         top = []
         if self.max_report > 0:
@@ -954,26 +1025,49 @@ class FloatingFStepwise(BaseOptimizer):
             order = np.argsort(-f_cand, kind="stable")
             order = order[np.isfinite(f_cand[order])][: self.max_report]
             top = [int(i) for i in order]
+        k = support.size
+        cols = np.concatenate([support, np.asarray(top, dtype=int)])
+        xs = x[:, cols] * screen.scale[cols]
         table = fit_anova(
-            x,
+            xs,
             y,
-            support,
+            np.arange(k),
             intercept=True,
             sample_weight=w,
-            candidates=top,
+            candidates=np.arange(k, cols.size),
             tolerance=params["tolerance"],
+        )
+        col_unit = screen.scale[support]
+        y_unit = np.float64(path.y_unit)
+
+        def squared_units(value):
+            # Sums of squares of data near 1e+-154 may not be representable
+            # (inf or 0); the selection itself ran on the scaled target.
+            with np.errstate(over="ignore", under="ignore"):
+                return float(value * y_unit * y_unit)
+
+        table = replace(
+            table,
+            features=tuple(int(j) for j in support),
+            out_features=tuple(top),
+            coefficients=table.coefficients * col_unit * y_unit,
+            std_errors=table.std_errors * col_unit * y_unit,
+            intercept=float(table.intercept * y_unit),
+            intercept_std_error=float(table.intercept_std_error * y_unit),
+            ss_regression=squared_units(table.ss_regression),
+            ss_residual=squared_units(table.ss_residual),
+            ss_total=squared_units(table.ss_total),
+            ms_regression=squared_units(table.ms_regression),
+            ms_residual=squared_units(table.ms_residual),
         )
         row = np.zeros(x.shape[1])
         sw = np.sqrt(w)
-        origin = (
-            lstsq_refined(x[:, support] * sw[:, None], y * sw)
-            if support.size
-            else np.zeros(0)
-        )
+        xw = xs[:, :k] * sw[:, None]
+        origin = lstsq_refined(xw, y * sw) if k else np.zeros(0)
         if path.exact_fit():
             # Noise-free target: the constant's t**2 is a ratio of rounding
             # errors. It is needed only if the fit without it is not exact.
-            resid = y * sw - (x[:, support] * sw[:, None]) @ origin
+            resid = y * sw - xw @ origin
             insignificant = float(resid @ resid) <= path.floor2
         else:
             _, remove_thr = self._thresholds(len(support), n_eff, params)
@@ -981,7 +1075,7 @@ class FloatingFStepwise(BaseOptimizer):
         dropped = bool(self.drop_insignificant_constant and insignificant)
         if dropped:
             icpt = 0.0
-            row[support] = origin
+            row[support] = origin * col_unit * y_unit
         else:
             icpt = table.intercept
             row[support] = table.coefficients
