@@ -1,20 +1,32 @@
-"""Confirm proposed correction terms against the measurements themselves.
+"""Confirm and complete the correction terms against the measurements.
 
 The stepwise regression of the MME model error proposes terms, but its
 F-ratios are computed on ``d(t)``, an estimate that is smooth (strongly
-autocorrelated) and shrunk toward zero, so they overstate significance and a
-large library can leave many superfluous terms. The measurements, on the
-other hand, carry white noise of known variance, so F-tests on simulation
-residuals are valid. This module therefore re-runs the selection in
-*output-error* space:
+autocorrelated) and shrunk toward zero: they overstate significance, and
+functions that look alike on the estimated trajectory (``x2`` and
+``x2 |x2|``) cannot be told apart there. The measurements, on the other
+hand, carry white noise of known variance, so F-tests on *simulation*
+residuals (output error) are valid. This module therefore finishes the
+selection in output-error space:
 
-* forward: the proposed terms are tried in the order the regression chose
-  them; each is kept only if refitting the extended model (initial state and
-  all kept coefficients) reduces the whitened residual sum of squares
-  significantly (partial F-test at level ``alpha``);
-* backward: kept terms whose refitted coefficient is no longer significant
-  (Wald test) are removed one at a time, weakest first;
-* finally the extended model is F-tested against the assumed model.
+1. start: the proposed terms refitted together (initial state and all
+   coefficients), or, when there are many or the joint refit fails, added one
+   at a time in the order the regression chose them, each kept only if it
+   improves the fit significantly (partial F-test at ``alpha``);
+2. swap: each term is taken out and the look-alike library functions of
+   its equation (most correlated along the current simulation) are put in
+   instead; the best replacement is kept if it fits the data better (the
+   regression cannot tell ``x2`` from ``x2 |x2|``; the measurements can);
+3. backward: terms whose refitted coefficient is not significant (Wald test)
+   leave, weakest first;
+4. forward over the whole library: a linearised score test (output
+   sensitivities from the variational equations along the current
+   simulation) ranks every library function of every error state by the
+   partial F it would have; the best enters if it is significant after a
+   Bonferroni correction for the number of candidates, and is confirmed by an
+   actual refit;
+5. repeat 2-4 until nothing changes; finally the extended model is F-tested
+   against the assumed model.
 
 The refit also removes the shrinkage bias of the regression coefficients.
 """
@@ -28,7 +40,14 @@ from scipy import stats
 
 from ._output_error import OutputErrorProblem, OutputErrorResult
 
-__all__ = ["confirm_terms", "Confirmation"]
+__all__ = ["confirm_terms", "Confirmation", "make_problem_factory", "add_scores"]
+
+#: proposals refitted jointly at the start when there are at most this many
+JOINT_START_MAX = 6
+#: rounds of backward/swap/forward passes
+MAX_ROUNDS = 4
+#: function evaluations allowed to a trial refit
+TRIAL_NFEV = 20
 
 
 @dataclass
@@ -37,14 +56,14 @@ class Confirmation:
 
     Attributes
     ----------
-    slots : list of (state, feature) pairs kept
+    slots : list of (state, column) pairs kept
     fit : OutputErrorResult or None
         Final refit (None when no term is kept).
-    rejected : list of (slot, reason) for proposed terms not kept
+    rejected : list of (slot, reason) for proposed or tried terms not kept
     correction_p_value : float
         F-test of the extended against the assumed model (NaN if no term).
     log : list of str
-        One line per decision, for the report.
+        One line per decision.
     """
 
     slots: list
@@ -55,9 +74,12 @@ class Confirmation:
 
 
 def _p_add(cost_small, cost_big, n_res, n_params_big, n_added=1) -> float:
+    """p-value of the partial F-test for ``n_added`` extra parameters."""
+    if not np.isfinite(cost_big):
+        return 1.0
+    if cost_big <= 0:
+        return 0.0
     dof = max(n_res - n_params_big, 1)
-    if not np.isfinite(cost_big) or cost_big <= 0:
-        return 1.0 if not np.isfinite(cost_big) else 0.0
     f_stat = ((cost_small - cost_big) / n_added) / (cost_big / dof)
     return float(stats.f.sf(f_stat, n_added, dof)) if f_stat > 0 else 1.0
 
@@ -71,6 +93,135 @@ def _wald_p(fit: OutputErrorResult, n_states: int) -> np.ndarray:
     return np.where(np.isfinite(p), p, 1.0)
 
 
+def add_scores(problem: OutputErrorProblem, fit: OutputErrorResult, candidates, f_rows):
+    """Linearised partial F (and a step) for adding each candidate slot.
+
+    The sensitivity of the simulated measurements to a new coefficient
+    ``beta_c`` (at 0) solves ``S' = A(t) S + e_state theta_c(x(t))`` along the
+    current simulation, ``A`` the Jacobian of the current model; it is
+    integrated for all candidates at once with RK4 on the sample grid. With
+    the current residual ``r`` and Jacobian ``J``, the reduction of the
+    residual sum of squares from fitting ``beta_c`` jointly with the current
+    parameters is ``(s_perp . r)^2 / |s_perp|^2``, ``s_perp`` the whitened
+    sensitivity with the span of ``J`` projected out (a score test).
+
+    Returns
+    -------
+    f_values : ndarray (n_candidates,)
+    steps : ndarray (n_candidates,)
+        Gauss-Newton estimate of each new coefficient.
+    """
+    n = problem.n_states
+    k_c = len(candidates)
+    zeros = np.zeros(k_c)
+    if fit is None or fit.jacobian is None or not k_c:
+        return zeros, zeros
+    x = problem._simulate(fit.params[None])[0]
+    if not np.all(np.isfinite(x)):
+        return zeros, zeros
+    t, u = problem.t, problem.u
+    coef = fit.params[n:]
+
+    def rhs_rows(xx):
+        out = np.array(f_rows(xx, t, u), dtype=float)
+        if problem.slots:
+            zz = xx if u is None else np.hstack([xx, u])
+            theta = problem.features(zz, problem.used)
+            for j, (state, pos) in enumerate(problem._state_pos):
+                out[:, state] += coef[j] * theta[:, pos]
+        return out
+
+    jac = np.empty((x.shape[0], n, n))
+    h = 1e-6 * np.maximum(np.abs(x), 1.0)
+    for j in range(n):
+        xp, xm = x.copy(), x.copy()
+        xp[:, j] += h[:, j]
+        xm[:, j] -= h[:, j]
+        with np.errstate(all="ignore"):
+            jac[:, :, j] = (rhs_rows(xp) - rhs_rows(xm)) / (2 * h[:, [j]])
+    z = x if u is None else np.hstack([x, u])
+    cols = sorted({c for _, c in candidates})
+    pos = {c: k for k, c in enumerate(cols)}
+    with np.errstate(all="ignore"):
+        theta = problem.features(z, cols)
+    forcing = np.zeros((x.shape[0], n, k_c))
+    for k, (state, col) in enumerate(candidates):
+        forcing[:, state, k] = theta[:, pos[col]]
+    usable = np.all(np.isfinite(forcing), axis=(0, 1)) & np.all(np.isfinite(jac))
+    forcing[:, :, ~usable] = 0.0
+    jac[~np.isfinite(jac)] = 0.0
+
+    sens = np.zeros((x.shape[0], n, k_c))
+    s_k = np.zeros((n, k_c))
+    for k in range(x.shape[0] - 1):
+        dt = t[k + 1] - t[k]
+        a0, a1 = jac[k], jac[k + 1]
+        am = 0.5 * (a0 + a1)
+        g0, g1 = forcing[k], forcing[k + 1]
+        gm = 0.5 * (g0 + g1)
+        k1 = a0 @ s_k + g0
+        k2 = am @ (s_k + 0.5 * dt * k1) + gm
+        k3 = am @ (s_k + 0.5 * dt * k2) + gm
+        k4 = a1 @ (s_k + dt * k3) + g1
+        s_k = s_k + (dt / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        sens[k + 1] = s_k
+    y_sens = problem.measure(sens.transpose(0, 2, 1)) @ problem.whiten.T  # (N,K,m)
+    y_sens = y_sens.transpose(1, 0, 2)  # (K, N, m)
+    mask = np.broadcast_to(problem.mask, y_sens.shape)
+    s_mat = y_sens[mask].reshape(k_c, -1).T  # (n_res, K)
+    if not np.all(np.isfinite(s_mat)):
+        bad = ~np.all(np.isfinite(s_mat), axis=0)
+        s_mat[:, bad] = 0.0
+        usable &= ~bad
+    q, _ = np.linalg.qr(fit.jacobian)
+    s_perp = s_mat - q @ (q.T @ s_mat)
+    r = fit.residuals
+    num = s_perp.T @ r
+    den = np.einsum("ij,ij->j", s_perp, s_perp)
+    ssr = float(r @ r)
+    dof = max(r.size - fit.params.size - 1, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dssr = np.where(den > 1e-12 * max(ssr, 1e-300), num**2 / den, 0.0)
+        f_values = dssr / np.maximum(ssr - dssr, 1e-300) * dof
+        step = np.where(den > 0, num / den, 0.0)
+    f_values[~usable] = 0.0
+    return np.nan_to_num(f_values), np.nan_to_num(step)
+
+
+#: look-alike functions tried in place of each term
+N_LOOK_ALIKES = 2
+
+
+def _look_alikes(problem, fit, slot, library_candidates, slots):
+    """The library functions of ``slot``'s equation most like it.
+
+    Returns ``[(candidate slot, coefficient ratio)]``: correlation along the
+    current simulation ranks them, and the least-squares ratio of the two
+    columns scales the starting coefficient.
+    """
+    x = problem._simulate(fit.params[None])[0]
+    if not np.all(np.isfinite(x)):
+        return []
+    z = x if problem.u is None else np.hstack([x, problem.u])
+    pool = [c for c in library_candidates if c[0] == slot[0] and c not in slots]
+    if not pool:
+        return []
+    with np.errstate(all="ignore"):
+        cols = problem.features(z, [slot[1]] + [c[1] for c in pool])
+    ref, others = cols[:, 0], cols[:, 1:]
+    ok = np.all(np.isfinite(others), axis=0) & (np.std(others, axis=0) > 0)
+    if not np.all(np.isfinite(ref)) or np.std(ref) == 0 or not np.any(ok):
+        return []
+    rc = ref - ref.mean()
+    oc = others - others.mean(axis=0)
+    with np.errstate(all="ignore"):
+        corr = np.abs(oc.T @ rc) / (np.linalg.norm(oc, axis=0) * np.linalg.norm(rc))
+        ratio = (others.T @ ref) / np.einsum("ij,ij->j", others, others)
+    corr[~ok] = -1.0
+    order = np.argsort(corr)[::-1][:N_LOOK_ALIKES]
+    return [(pool[k], float(ratio[k])) for k in order if corr[k] > 0.8]
+
+
 def confirm_terms(
     make_problem,
     proposals,
@@ -79,67 +230,164 @@ def confirm_terms(
     n_states: int,
     alpha: float,
     describe,
+    library_candidates=(),
+    f_rows=None,
 ) -> Confirmation:
-    """Forward-backward selection of ``proposals`` by output-error F-tests.
+    """Select correction terms by output-error tests (see module docstring).
 
     Parameters
     ----------
     make_problem : callable ``slots -> OutputErrorProblem``
-    proposals : list of (state, feature) slots, in the order to try them
+    proposals : list of (state, column) slots, in the order to try them
     start_values : list of float
         Regression coefficient of each proposal (the starting value).
     assumed_fit : OutputErrorResult
         Fit of the assumed model (initial state only).
     describe : callable ``slot -> str`` for the log.
+    library_candidates : list of (state, column) slots
+        Every library function the forward search may add.
+    f_rows : callable ``(x, t, u) -> dx/dt``, row-wise assumed model
+        Needed for the forward search over the library.
     """
-    log = []
-    rejected = []
-    slots, values = [], []
-    current = assumed_fit
-    for slot, value in zip(proposals, start_values):
-        trial_slots = slots + [slot]
-        params0 = np.concatenate([current.params, [value]])
-        trial = make_problem(trial_slots).fit(params0)
-        # the regression value may start the refit in a poor basin; from 0 the
-        # new term starts as a small perturbation of the current model.
-        if not np.isfinite(trial.cost) or trial.cost >= current.cost:
-            retry = make_problem(trial_slots).fit(
-                np.concatenate([current.params, [0.0]])
+    log, rejected = [], []
+
+    def polish(slots, params0):
+        return make_problem(slots).fit(np.asarray(params0, dtype=float))
+
+    def refit(slots, params0):
+        # trial refits stop early; the chosen model is polished at the end
+        return make_problem(slots).fit(
+            np.asarray(params0, dtype=float), max_nfev=TRIAL_NFEV, tol=1e-6
+        )
+
+    # ---- 1. start ----
+    slots, current = [], assumed_fit
+    joint = None
+    if 0 < len(proposals) <= JOINT_START_MAX:
+        joint = polish(
+            list(proposals), np.concatenate([assumed_fit.params, start_values])
+        )
+        p_joint = _p_add(
+            assumed_fit.cost,
+            joint.cost,
+            joint.n_residuals,
+            joint.params.size,
+            n_added=len(proposals),
+        )
+        if np.isfinite(joint.cost) and p_joint <= alpha:
+            slots, current = list(proposals), joint
+            log.append(f"joint refit of {len(proposals)} proposals (p = {p_joint:.2g})")
+        else:
+            joint = None
+    if joint is None:
+        for slot, value in zip(proposals, start_values):
+            trial_slots = slots + [slot]
+            trial = refit(trial_slots, np.concatenate([current.params, [value]]))
+            # the regression value may start the refit in a poor basin; from 0
+            # the new term starts as a small perturbation of the current model
+            if not np.isfinite(trial.cost) or trial.cost >= current.cost:
+                retry = refit(trial_slots, np.concatenate([current.params, [0.0]]))
+                if retry.cost < trial.cost:
+                    trial = retry
+            p = _p_add(current.cost, trial.cost, trial.n_residuals, trial.params.size)
+            if p <= alpha:
+                slots, current = trial_slots, polish(trial_slots, trial.params)
+                log.append(f"kept {describe(slot)} (p = {p:.2g})")
+            else:
+                rejected.append((slot, f"does not improve the fit (p = {p:.2g})"))
+                log.append(f"rejected {describe(slot)} (p = {p:.2g})")
+
+    tried = set(slots)
+    swap_checked = set()
+    for _ in range(MAX_ROUNDS):
+        changed = False
+        search = f_rows is not None and bool(library_candidates)
+        # ---- 2. swap: could a look-alike library function do a term's job
+        # better? (The regression of d cannot tell x2 from x2 |x2|; the
+        # measurements can.) Look-alikes: the functions of the same equation
+        # most correlated with the term along the current simulation.
+        for slot in list(slots) if search else []:
+            if slot not in slots or slot in swap_checked:
+                continue
+            swap_checked.add(slot)
+            best_fit, best_slot = None, None
+            for alt, ratio in _look_alikes(
+                make_problem(slots), current, slot, library_candidates, slots
+            ):
+                k = slots.index(slot)
+                trial_slots = slots[:k] + [alt] + slots[k + 1 :]
+                params0 = current.params.copy()
+                params0[n_states + k] *= ratio
+                trial = refit(trial_slots, params0)
+                if trial.cost < current.cost and (
+                    best_fit is None or trial.cost < best_fit.cost
+                ):
+                    best_fit, best_slot = trial, alt
+            if best_fit is not None:
+                log.append(f"swapped {describe(slot)} for {describe(best_slot)}")
+                rejected.append(
+                    (
+                        slot,
+                        f"replaced by {describe(best_slot)}, "
+                        "which fits the data better",
+                    )
+                )
+                slots[slots.index(slot)] = best_slot
+                current = polish(slots, best_fit.params)
+                tried.add(best_slot)
+                changed = True
+        # ---- 3. backward ----
+        while slots:
+            pvals = _wald_p(current, n_states)
+            worst = int(np.argmax(pvals))
+            if pvals[worst] <= alpha:
+                break
+            slot = slots[worst]
+            keep = [k for k in range(len(slots)) if k != worst]
+            slots = [slots[k] for k in keep]
+            rejected.append(
+                (slot, f"not significant in the joint refit (p = {pvals[worst]:.2g})")
             )
-            if retry.cost < trial.cost:
-                trial = retry
+            log.append(f"removed {describe(slot)} (p = {pvals[worst]:.2g})")
+            changed = True
+            if not slots:
+                current = assumed_fit
+                break
+            current = polish(
+                slots,
+                np.concatenate(
+                    [current.params[:n_states], current.params[n_states:][keep]]
+                ),
+            )
+        # ---- 4. forward over the library ----
+        if not search:
+            break
+        pool = [c for c in library_candidates if c not in slots and c not in tried]
+        if not pool:
+            break
+        f_vals, steps = add_scores(make_problem(slots), current, pool, f_rows)
+        best = int(np.argmax(f_vals))
+        dof = max(current.n_residuals - current.params.size - 1, 1)
+        p_best = min(1.0, float(stats.f.sf(f_vals[best], 1, dof)) * len(pool))
+        if p_best > alpha:
+            if not changed:
+                break
+            continue
+        slot = pool[best]
+        tried.add(slot)
+        trial_slots = slots + [slot]
+        trial = refit(trial_slots, np.concatenate([current.params, [steps[best]]]))
         p = _p_add(current.cost, trial.cost, trial.n_residuals, trial.params.size)
-        if p <= alpha:
-            slots, current = trial_slots, trial
-            values = list(trial.params[n_states:])
-            log.append(f"kept {describe(slot)} (p = {p:.2g})")
+        if p * len(pool) <= alpha:
+            slots, current = trial_slots, polish(trial_slots, trial.params)
+            log.append(f"added {describe(slot)} from the library (p = {p:.2g})")
+            changed = True
         else:
             rejected.append(
-                (slot, f"does not improve the fit to the data (p = {p:.2g})")
+                (slot, f"score test suggested it, refit did not confirm (p = {p:.2g})")
             )
-            log.append(f"rejected {describe(slot)} (p = {p:.2g})")
-
-    # backward: drop terms no longer significant in the joint refit
-    while slots:
-        pvals = _wald_p(current, n_states)
-        worst = int(np.argmax(pvals))
-        if pvals[worst] <= alpha:
+        if not changed:
             break
-        slot = slots[worst]
-        keep = [k for k in range(len(slots)) if k != worst]
-        slots = [slots[k] for k in keep]
-        rejected.append(
-            (slot, f"not significant in the joint refit (p = {pvals[worst]:.2g})")
-        )
-        log.append(f"removed {describe(slot)} (p = {pvals[worst]:.2g})")
-        if not slots:
-            current = assumed_fit
-            break
-        params0 = np.concatenate(
-            [current.params[:n_states], current.params[n_states:][keep]]
-        )
-        current = make_problem(slots).fit(params0)
-    del values
 
     if not slots:
         return Confirmation([], None, rejected, float("nan"), log)

@@ -74,13 +74,15 @@ class SelectedFeatures:
 
     def _fast(self, z, subset=None):
         chosen = range(len(self._factors)) if subset is None else subset
-        out = np.ones((z.shape[0], len(chosen)))
+        out = np.empty((z.shape[0], len(chosen)))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for j, k in enumerate(chosen):
-                factors = self._factors[k]
-                for var, power, absolute in factors:
+                col = None
+                for var, power, absolute in self._factors[k]:
                     base = np.abs(z[:, var]) if absolute else z[:, var]
-                    out[:, j] *= base if power == 1 else base ** float(power)
+                    term = base if power == 1 else base ** float(power)
+                    col = term if col is None else col * term
+                out[:, j] = 1.0 if col is None else col
         return out
 
     def _transform(self, z):

@@ -88,6 +88,21 @@ class ModelFunction:
                 )
         return out
 
+    def unchecked(self):
+        """The model as a bare ``f(x, t, u)`` with no shape checks.
+
+        For hot loops (fixed-step integration) after :meth:`check` has
+        validated the model once; rows of ``x`` must be states.
+        """
+        func = self._func
+        if self._kind == "predict":
+            return lambda x, t, u: np.asarray(
+                func.predict(x) if u is None else func.predict(x, u=u), dtype=float
+            ).reshape(x.shape)
+        if self._takes_u:
+            return func
+        return lambda x, t, u: func(x, t)
+
     def check(self, x, t, u=None) -> np.ndarray:
         """Evaluate once and raise a clear error on a bad shape or value."""
         out = self(x, t, u)

@@ -49,6 +49,13 @@ def batch_simulate(rhs, x0, t, u=None, substeps: int = 2) -> np.ndarray:
     out[:, 0] = x
     limit = 1e8 * max(1.0, float(np.nanmax(np.abs(x))))
     alive = np.all(np.isfinite(x), axis=1)
+    with np.errstate(all="ignore"):
+        _rk4_loop(rhs, x, t, u, substeps, out, limit, alive)
+    return out
+
+
+def _rk4_loop(rhs, x, t, u, substeps, out, limit, alive):
+    """The time loop of :func:`batch_simulate` (fills ``out`` in place)."""
     for k in range(t.size - 1):
         h = (t[k + 1] - t[k]) / substeps
         for s in range(substeps):
@@ -64,18 +71,16 @@ def batch_simulate(rhs, x0, t, u=None, substeps: int = 2) -> np.ndarray:
                 ua = u[k] + frac0 * (u[k + 1] - u[k])
                 um = u[k] + frach * (u[k + 1] - u[k])
                 ub = u[k] + frac1 * (u[k + 1] - u[k])
-            with np.errstate(all="ignore"):
-                k1 = rhs(x, s0, ua)
-                k2 = rhs(x + 0.5 * h * k1, s0 + 0.5 * h, um)
-                k3 = rhs(x + 0.5 * h * k2, s0 + 0.5 * h, um)
-                k4 = rhs(x + h * k3, s0 + h, ub)
-                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            k1 = rhs(x, s0, ua)
+            k2 = rhs(x + 0.5 * h * k1, s0 + 0.5 * h, um)
+            k3 = rhs(x + 0.5 * h * k2, s0 + 0.5 * h, um)
+            k4 = rhs(x + h * k3, s0 + h, ub)
+            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         bad = ~np.all(np.isfinite(x) & (np.abs(x) < limit), axis=1)
         if np.any(bad & alive):
             alive &= ~bad
             x[bad] = np.nan
         out[:, k + 1] = x
-    return out
 
 
 @dataclass
@@ -94,6 +99,10 @@ class OutputErrorResult:
     n_residuals : int
     converged : bool
     message : str
+    residuals : ndarray (n_residuals,) or None
+        Whitened residuals at the solution.
+    jacobian : ndarray (n_residuals, n_params) or None
+        Their Jacobian with respect to ``params``.
     """
 
     params: np.ndarray
@@ -103,6 +112,8 @@ class OutputErrorResult:
     n_residuals: int
     converged: bool
     message: str
+    residuals: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
 
     @property
     def std_errors(self) -> np.ndarray:
@@ -209,7 +220,7 @@ class OutputErrorProblem:
         r = self.residuals_batch(params)[0]
         return float(r @ r) if np.all(np.isfinite(r)) else np.inf
 
-    def fit(self, params0, max_nfev: int = 60) -> OutputErrorResult:
+    def fit(self, params0, max_nfev: int = 60, tol: float = 1e-10) -> OutputErrorResult:
         """Gauss-Newton with a trust region (scipy ``least_squares``, 'trf')."""
         params0 = np.asarray(params0, dtype=float)
         scale = np.maximum(np.abs(params0), 1e-3)
@@ -246,8 +257,8 @@ class OutputErrorProblem:
                 method="trf",
                 x_scale="jac",
                 max_nfev=max_nfev,
-                xtol=1e-10,
-                ftol=1e-10,
+                xtol=tol,
+                ftol=tol,
             )
         base, jac = evaluate(sol.x)
         cost = float(base @ base)
@@ -266,4 +277,6 @@ class OutputErrorProblem:
             n_residuals=n_res,
             converged=bool(sol.status > 0) and np.isfinite(cost),
             message=str(sol.message),
+            residuals=base,
+            jacobian=jac,
         )

@@ -475,10 +475,12 @@ def discover(
     def measure(x):
         return x[..., measured_idx]
 
+    f_fast = f.unchecked()  # validated by MME's first evaluation
+
     def base_rhs(x, s, us):
         tt = np.full(x.shape[0], s)
         uu = None if us is None else np.tile(us, (x.shape[0], 1))
-        return f(x, tt, uu)
+        return np.asarray(f_fast(x, tt, uu), dtype=float)
 
     # ---- 3. stepwise regression of d on the library ----
     z_hat = x_hat if u is None else np.hstack([x_hat, u])
@@ -513,33 +515,43 @@ def discover(
         if reg_intercept[i] != 0:
             candidate_terms[state_names[i]]["1"] = float(reg_intercept[i])
 
-    # Proposals as (state, column) slots, in the order the regression chose
-    # them; column index len(columns) stands for the optimizer's own intercept.
-    columns = [int(j) for j in np.flatnonzero(np.any(reg_coef != 0, axis=0))]
-    const_col = len(columns) if np.any(reg_intercept != 0) else None
+    # Slots are (state, library column); column n_lib stands for the
+    # optimizer's own intercept (a constant the library does not have).
+    n_lib = theta.shape[1]
+    const_col = n_lib
     proposals, start = [], []
     for k_target, i in enumerate(error_idx):
         for j in _entry_order(opt, k_target, reg_coef[i], theta):
-            proposals.append((int(i), columns.index(j)))
+            proposals.append((int(i), int(j)))
             start.append(float(reg_coef[i, j]))
         if reg_intercept[i] != 0:
             proposals.append((int(i), const_col))
             start.append(float(reg_intercept[i]))
-    selected = SelectedFeatures(library, feature_names, columns, z_hat)
+    selected = SelectedFeatures(library, feature_names, range(n_lib), z_hat)
 
     def features(z, cols):
-        # column const_col (one past the library columns) is the constant
         lib_cols = [k for k in cols if k != const_col]
         th = selected(z, lib_cols)
-        if const_col is not None and const_col in cols:
+        if const_col in cols:
             th = np.insert(th, list(cols).index(const_col), 1.0, axis=1)
         return th
 
+    # Every finite library function of every error state may be added by the
+    # forward search in output-error space (a constant too, if the library
+    # has none).
+    finite_cols = [int(j) for j in np.flatnonzero(np.all(np.isfinite(theta), axis=0))]
+    has_constant = any(
+        np.ptp(theta[:, j]) == 0 and theta[0, j] != 0 for j in finite_cols
+    )
+    library_candidates = [
+        (int(i), j)
+        for i in error_idx
+        for j in finite_cols + ([] if has_constant else [const_col])
+    ]
+
     # The refits integrate with fixed-step RK4: enough substeps per sample
     # interval to resolve the fastest time scale of the regression model.
-    substeps = _rk4_substeps(
-        f, features, reg_coef, reg_intercept, columns, x_hat, z_hat, t, u
-    )
+    substeps = _rk4_substeps(f, features, reg_coef, x_hat, t, u)
     make_problem = make_problem_factory(
         base_rhs, features, n_states, measure, y, t, u, noise_cov, substeps
     )
@@ -551,11 +563,20 @@ def discover(
 
     # ---- 4. confirm the proposals against the measurements ----
     def describe(slot):
-        return _slot_name(slot, columns, const_col, state_names, lib_names)
+        i, k = slot
+        return f"{state_names[i]}: {'1' if k == const_col else lib_names[k]}"
 
     if refit and proposals:
         confirmation = confirm_terms(
-            make_problem, proposals, start, assumed_fit, n_states, alpha, describe
+            make_problem,
+            proposals,
+            start,
+            assumed_fit,
+            n_states,
+            alpha,
+            describe,
+            library_candidates=library_candidates,
+            f_rows=f,
         )
     else:
         # No refit: keep the regression's terms and values as they are.
@@ -579,7 +600,7 @@ def discover(
         if k == const_col:
             intercept[i] = c
         else:
-            coef[i, columns[k]] = c
+            coef[i, k] = c
     extended = ExtendedModel(
         f,
         library,
@@ -603,10 +624,10 @@ def discover(
         se = extended_fit.std_errors[n_states:]
         dof = max(extended_fit.n_residuals - extended_fit.params.size, 1)
         for s, (i, k) in enumerate(final_slots):
-            fname = "1" if k == const_col else lib_names[columns[k]]
+            fname = "1" if k == const_col else lib_names[k]
             c = float(final_coef[s])
             terms[state_names[i]][fname] = c
-            reg_c = reg_intercept[i] if k == const_col else reg_coef[i, columns[k]]
+            reg_c = reg_intercept[i] if k == const_col else reg_coef[i, k]
             estimates.append(
                 TermEstimate(
                     state=state_names[i],
@@ -619,7 +640,7 @@ def discover(
                     partial_f=_partial_f(
                         opt,
                         list(error_idx).index(i),
-                        None if k == const_col else columns[k],
+                        None if k == const_col else k,
                     ),
                     p_value=float(2 * stats.t.sf(abs(c / se[s]), dof))
                     if se[s] > 0
@@ -742,25 +763,24 @@ def _entry_order(opt, target, coef_row, theta):
     return [support[k] for k in np.argsort(strength)[::-1]]
 
 
-def _rk4_substeps(f, features, reg_coef, reg_intercept, columns, x_hat, z_hat, t, u):
+def _rk4_substeps(f, features, reg_coef, x_hat, t, u):
     """RK4 steps per interval so that ``h * spectral radius <= 0.5``.
 
     The spectral radius of the Jacobian of the regression model (assumed model
     plus proposed correction) along the MME trajectory sets the fastest time
     scale; RK4 is accurate to ~1e-5 relative per step at ``h rho = 0.5``.
     """
-    del reg_intercept  # a constant does not change the Jacobian
     n = x_hat.shape[1]
     stride = max(1, x_hat.shape[0] // 200)  # a sample of points is enough
     xs, ts = x_hat[::stride], t[::stride]
     us = None if u is None else u[::stride]
-    coef = reg_coef[:, columns] if columns else np.zeros((n, 0))
+    columns = [int(j) for j in np.flatnonzero(np.any(reg_coef != 0, axis=0))]
 
     def model(x):
         out = f(x, ts, us)
         if columns:
             z = x if us is None else np.hstack([x, us])
-            out = out + features(z, range(len(columns))) @ coef.T
+            out = out + features(z, columns) @ reg_coef[:, columns].T
         return out
 
     jac = np.empty((xs.shape[0], n, n))
@@ -775,12 +795,6 @@ def _rk4_substeps(f, features, reg_coef, reg_intercept, columns, x_hat, z_hat, t
     rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
     dt = float(np.max(np.diff(t)))
     return int(min(50, max(1, np.ceil(dt * rho / 0.5))))
-
-
-def _slot_name(slot, columns, const_col, state_names, lib_names):
-    i, k = slot
-    feature = "1" if k == const_col else lib_names[columns[k]]
-    return f"{state_names[i]}: {feature}"
 
 
 def _partial_f(opt, target, column):
