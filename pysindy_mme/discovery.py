@@ -335,8 +335,8 @@ def discover(
         missing sample.
     t : array-like (n_samples,) or float
         Strictly increasing sample times (or the time step).
-    assumed_model : callable ``f(x, t)`` / ``f(x, t, u)``, pysindy model or ExtendedModel
-        The user's simulation model, vectorised over rows of ``x``.
+    assumed_model : callable, pysindy model or ExtendedModel
+        The user's simulation model ``f(x, t)`` or ``f(x, t, u)``, vectorised.
     n_states : int
     measured : sequence of int, optional
         Measured state indices (default: all states).
