@@ -316,7 +316,10 @@ class PowerLibrary(BaseFeatureLibrary):
         mode = _check_nonfinite(self.nonfinite)
         if sparse.issparse(x):
             raise TypeError("x must be a dense array; PowerLibrary has no sparse path")
-        arr = np.asarray(x, dtype=float)
+        try:
+            arr = np.asarray(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"x must be a numeric array: {exc}") from None
         n = self.n_features_in_
         if arr.ndim == 0 or arr.shape[-1] != n:
             raise ValueError(
@@ -328,8 +331,8 @@ class PowerLibrary(BaseFeatureLibrary):
                 "library itself makes non-finite and would hide these"
             )
         lead = arr.shape[:-1]
-        xs = arr.reshape(-1, n)
-        n_rows = xs.shape[0]
+        n_rows = int(np.prod(lead))
+        xs = arr.reshape(n_rows, n)  # explicit: reshape(-1, n) fails on 0 rows
         m = self._n_single
         # Work feature-major, (column, sample): every product below is then a
         # contiguous row-by-row multiplication (several times faster than
@@ -348,7 +351,8 @@ class PowerLibrary(BaseFeatureLibrary):
                 out_t[0] = 1.0
                 col = 1
             n_direct = self._single_cols.size
-            out_t[col : col + n_direct] = G.reshape(-1, n_rows)[self._single_cols]
+            flat = G.reshape(G.shape[0] * G.shape[1], n_rows)
+            out_t[col : col + n_direct] = flat[self._single_cols]
             col += n_direct
             if len(self._pairs):
                 np.multiply(

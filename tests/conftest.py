@@ -1,0 +1,61 @@
+"""Shared test configuration: the hypothesis profile and the case counts.
+
+The property-based tests (``tests/test_properties.py``) run under a fixed
+hypothesis profile, ``"ci"``: derandomised (the same examples on every run and
+every machine, so CI is reproducible), no deadline (timings on a loaded
+2-core runner vary), no example database written to disk, and each test sets
+its own ``max_examples`` so that the whole file stays within its time budget.
+Set ``HYPOTHESIS_PROFILE=dev`` for a randomised local search with more
+examples.
+
+Every property test counts the inputs it generated per public entry point
+through the ``case_counter`` fixture; the counts are printed in the terminal
+summary, so they show in normal CI output.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    deadline=None,
+    database=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.register_profile(
+    "dev",
+    deadline=None,
+    max_examples=500,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+_CASES = pytest.StashKey[Counter]()
+
+
+def pytest_configure(config):
+    config.stash[_CASES] = Counter()
+
+
+@pytest.fixture(scope="session")
+def case_counter(pytestconfig) -> Counter:
+    """``case_counter[entry_point] += 1`` for every generated input."""
+    return pytestconfig.stash[_CASES]
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    counts = config.stash.get(_CASES, None)
+    if not counts:
+        return
+    terminalreporter.section("hypothesis: generated cases per entry point")
+    width = max(len(name) for name in counts)
+    for name, count in sorted(counts.items()):
+        terminalreporter.write_line(f"{name:<{width}}  {count:>6}")
+    terminalreporter.write_line(f"{'total':<{width}}  {sum(counts.values()):>6}")
