@@ -5,8 +5,8 @@ hypothesis profile, ``"ci"``: derandomised (the same examples on every run and
 every machine, so CI is reproducible), no deadline (timings on a loaded
 2-core runner vary), no example database written to disk, and each test sets
 its own ``max_examples`` so that the whole file stays within its time budget.
-Set ``HYPOTHESIS_PROFILE=dev`` for a randomised local search with more
-examples.
+Set ``HYPOTHESIS_PROFILE=dev`` for a randomised search (new examples on each
+run, same counts) when hunting for bugs locally.
 
 Every property test counts the inputs it generated per public entry point
 through the ``case_counter`` fixture; the counts are printed in the terminal
@@ -32,7 +32,6 @@ settings.register_profile(
 settings.register_profile(
     "dev",
     deadline=None,
-    max_examples=500,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
