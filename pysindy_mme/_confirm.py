@@ -12,7 +12,7 @@ selection in output-error space:
 1. start: the proposed terms refitted together (initial state and all
    coefficients), or, when there are many or the joint refit fails, added one
    at a time in the order the regression chose them, each kept only if it
-   improves the fit significantly (partial F-test at ``alpha``);
+   improves the fit significantly (partial F-test);
 2. swap: each term is taken out and the look-alike library functions of
    its equation (most correlated along the current simulation) are put in
    instead; the best replacement is kept if it fits the data better (the
@@ -28,7 +28,10 @@ selection in output-error space:
 5. repeat 2-4 until nothing changes; finally the extended model is F-tested
    against the assumed model.
 
-The refit also removes the shrinkage bias of the regression coefficients.
+Every term is tested at the Bonferroni level ``alpha / n_candidates`` (the
+regression picked it from the whole library), so that the chance of reporting
+any false term when the assumed model is right stays about ``alpha``. The
+refit also removes the shrinkage bias of the regression coefficients.
 """
 
 from __future__ import annotations
@@ -232,6 +235,7 @@ def confirm_terms(
     describe,
     library_candidates=(),
     f_rows=None,
+    x0_start=None,
 ) -> Confirmation:
     """Select correction terms by output-error tests (see module docstring).
 
@@ -248,8 +252,16 @@ def confirm_terms(
         Every library function the forward search may add.
     f_rows : callable ``(x, t, u) -> dx/dt``, row-wise assumed model
         Needed for the forward search over the library.
+    x0_start : ndarray (n_states,), optional
+        Initial state to start the first refit from (the MME estimate). The
+        assumed model's own best-fit initial state can be far off, because it
+        bends the initial state to make up for the missing terms.
     """
     log, rejected = [], []
+    x0_start = assumed_fit.params if x0_start is None else np.asarray(x0_start)
+    # Every term was picked from the whole library: each one must pass at the
+    # Bonferroni level, so that the chance of any false term stays ~alpha.
+    alpha_term = alpha / max(1, len(library_candidates), len(proposals))
 
     def polish(slots, params0):
         return make_problem(slots).fit(np.asarray(params0, dtype=float))
@@ -264,9 +276,7 @@ def confirm_terms(
     slots, current = [], assumed_fit
     joint = None
     if 0 < len(proposals) <= JOINT_START_MAX:
-        joint = polish(
-            list(proposals), np.concatenate([assumed_fit.params, start_values])
-        )
+        joint = polish(list(proposals), np.concatenate([x0_start, start_values]))
         p_joint = _p_add(
             assumed_fit.cost,
             joint.cost,
@@ -274,7 +284,7 @@ def confirm_terms(
             joint.params.size,
             n_added=len(proposals),
         )
-        if np.isfinite(joint.cost) and p_joint <= alpha:
+        if np.isfinite(joint.cost) and p_joint <= alpha_term:
             slots, current = list(proposals), joint
             log.append(f"joint refit of {len(proposals)} proposals (p = {p_joint:.2g})")
         else:
@@ -282,7 +292,11 @@ def confirm_terms(
     if joint is None:
         for slot, value in zip(proposals, start_values):
             trial_slots = slots + [slot]
-            trial = refit(trial_slots, np.concatenate([current.params, [value]]))
+            x0 = x0_start if not slots else current.params[:n_states]
+            trial = refit(
+                trial_slots,
+                np.concatenate([x0, current.params[n_states:], [value]]),
+            )
             # the regression value may start the refit in a poor basin; from 0
             # the new term starts as a small perturbation of the current model
             if not np.isfinite(trial.cost) or trial.cost >= current.cost:
@@ -290,7 +304,7 @@ def confirm_terms(
                 if retry.cost < trial.cost:
                     trial = retry
             p = _p_add(current.cost, trial.cost, trial.n_residuals, trial.params.size)
-            if p <= alpha:
+            if p <= alpha_term:
                 slots, current = trial_slots, polish(trial_slots, trial.params)
                 log.append(f"kept {describe(slot)} (p = {p:.2g})")
             else:
@@ -340,7 +354,7 @@ def confirm_terms(
         while slots:
             pvals = _wald_p(current, n_states)
             worst = int(np.argmax(pvals))
-            if pvals[worst] <= alpha:
+            if pvals[worst] <= alpha_term:
                 break
             slot = slots[worst]
             keep = [k for k in range(len(slots)) if k != worst]
@@ -368,8 +382,8 @@ def confirm_terms(
         f_vals, steps = add_scores(make_problem(slots), current, pool, f_rows)
         best = int(np.argmax(f_vals))
         dof = max(current.n_residuals - current.params.size - 1, 1)
-        p_best = min(1.0, float(stats.f.sf(f_vals[best], 1, dof)) * len(pool))
-        if p_best > alpha:
+        p_best = float(stats.f.sf(f_vals[best], 1, dof))
+        if p_best > alpha_term:
             if not changed:
                 break
             continue
@@ -378,7 +392,7 @@ def confirm_terms(
         trial_slots = slots + [slot]
         trial = refit(trial_slots, np.concatenate([current.params, [steps[best]]]))
         p = _p_add(current.cost, trial.cost, trial.n_residuals, trial.params.size)
-        if p * len(pool) <= alpha:
+        if p <= alpha_term:
             slots, current = trial_slots, polish(trial_slots, trial.params)
             log.append(f"added {describe(slot)} from the library (p = {p:.2g})")
             changed = True

@@ -577,6 +577,7 @@ def discover(
             describe,
             library_candidates=library_candidates,
             f_rows=f,
+            x0_start=x_hat[0],
         )
     else:
         # No refit: keep the regression's terms and values as they are.
