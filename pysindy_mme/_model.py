@@ -78,14 +78,20 @@ class ModelFunction:
             out = self._func(x, t)
         out = np.asarray(out, dtype=float)
         if out.shape != x.shape:
-            if out.size == x.size:
-                out = out.reshape(x.shape)
-            else:
-                raise ValueError(
-                    f"{self.name} returned an array of shape {out.shape} for x of "
-                    f"shape {x.shape}; it must return dx/dt with the same shape as x "
-                    "(n_samples, n_states)"
-                )
+            # One state: (n_samples,) is unambiguous. Anything else of the right
+            # size (e.g. equations stacked as rows) would be silently scrambled.
+            if x.shape[1] == 1 and out.shape == (x.shape[0],):
+                return out.reshape(x.shape)
+            hint = (
+                " (equations as rows? build the result with np.column_stack)"
+                if out.shape == x.shape[::-1] and x.shape[0] != x.shape[1]
+                else ""
+            )
+            raise ValueError(
+                f"{self.name} returned an array of shape {out.shape} for x of "
+                f"shape {x.shape}; it must return dx/dt with the same shape as x "
+                f"(n_samples, n_states){hint}"
+            )
         return out
 
     def unchecked(self):

@@ -223,13 +223,21 @@ class OutputErrorProblem:
     def fit(self, params0, max_nfev: int = 60, tol: float = 1e-10) -> OutputErrorResult:
         """Gauss-Newton with a trust region (scipy ``least_squares``, 'trf')."""
         params0 = np.asarray(params0, dtype=float)
-        scale = np.maximum(np.abs(params0), 1e-3)
+        # Relative finite-difference steps, so that data in any units (tiny or
+        # huge coefficients) are differentiated alike; a parameter at 0 takes
+        # its step from the size of the others.
+        size = np.abs(params0)
+        fallback = 1e-3 * (size.max() if size.max() > 0 else 1.0)
+        typical = np.where(size > 0, size, fallback)
         cache = {}
 
         def evaluate(p):
             key = p.tobytes()
             if key not in cache:
-                steps = np.sqrt(np.finfo(float).eps) * np.maximum(np.abs(p), scale)
+                size_p = np.abs(p)
+                steps = np.sqrt(np.finfo(float).eps) * np.where(
+                    size_p > 1e-3 * typical, size_p, typical
+                )
                 batch = np.vstack([p, p + np.diag(steps)])
                 r = self.residuals_batch(batch)
                 base = r[0]

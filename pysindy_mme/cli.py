@@ -240,6 +240,8 @@ def run_discover(args) -> int:
         )
     except (ValueError, TypeError) as exc:
         raise UsageError(str(exc)) from None
+    except FloatingPointError as exc:  # the model diverged (DivergenceError)
+        raise UsageError(f"the assumed model diverged: {exc}") from None
     print(result)
     written = _write_outputs(result, Path(args.out))
     print("Written: " + ", ".join(str(p) for p in written))

@@ -402,6 +402,8 @@ def discover(
         else val.check_indices(error_states, n_states, "error_states")
     )
     alpha = val.check_probability(alpha, "alpha")
+    if not isinstance(refit, (bool, np.bool_)):
+        raise TypeError(f"refit must be True or False, got {refit!r}")
     if u is not None:
         u = val.as_float_array(u, "u", ndim=(1, 2))
         if u.ndim == 1:
@@ -588,6 +590,16 @@ def discover(
         )
     final_slots = confirmation.slots
     extended_fit = confirmation.fit
+    if not assumed_fit.converged:
+        notes.append(
+            "the output-error fit of the assumed model did not converge "
+            f"({assumed_fit.message})"
+        )
+    if refit and extended_fit is not None and not extended_fit.converged:
+        notes.append(
+            "the output-error refit of the extended model did not converge "
+            f"({extended_fit.message}); its coefficients may be inaccurate"
+        )
     final_coef = (
         np.array([]) if extended_fit is None else extended_fit.params[n_states:]
     )

@@ -477,12 +477,6 @@ BAD_INPUTS = [
         lambda tmp: _mme_fit(assumed_model=_transposed),
         ValueError,
         r"assumed_model returned an array of shape \(2, 401\)",
-        xfail="ModelFunction.__call__ (_model.py) reshapes any output of the "
-        "right size, so a (n_states, n_samples) array is silently scrambled and "
-        "the solver later fails with a misleading 'singular' message. Fix: "
-        "accept out.shape == x.shape, or (n_samples,) when n_states == 1; "
-        "raise the shape error otherwise (say 'use np.column_stack' when "
-        "out.shape == x.shape[::-1]).",
     ),
     _bad(
         "MME: model returns NaN",
@@ -713,9 +707,6 @@ BAD_INPUTS = [
         lambda tmp: _discover(refit="no"),
         TypeError,
         r"refit must be True or False",
-        xfail="discover accepts any truthy/falsy refit ('no' means refit). Fix in "
-        "discover's validation: `if not isinstance(refit, (bool, np.bool_)): "
-        "raise TypeError(f'refit must be True or False, got {refit!r}')`.",
     ),
     # ---- command line (issue 4: model file, CSV, short record; exit code 2)
     _bad(
@@ -1156,22 +1147,7 @@ def test_vdp_regression_selects_the_same_terms_in_any_units(unit, vdp_model_erro
     "unit",
     [
         1e-6,
-        pytest.param(
-            1e6,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="OutputErrorProblem.fit (_output_error.py) takes "
-                "finite-difference steps sqrt(eps) * max(|p|, 1e-3): in units of "
-                "1e6 the x1^2 x2 coefficient is ~1e-12, a step of 1.5e-11 blows the "
-                "simulation up and the Jacobian is garbage; the joint refit stops "
-                "(xtol) at a whitened cost of 11117 instead of 394, with x1^2 x2 "
-                "58% and x2 20% off, and no warning. Fix: relative steps "
-                "sqrt(eps) * |p| for nonzero p, and for p = 0 a caller-supplied "
-                "typical size (|regression coefficient| for a term, max |y| for a "
-                "state) instead of the absolute 1e-3 (checked: relative steps "
-                "alone give the same terms and coefficients at 1e-6, 1 and 1e6).",
-            ),
-        ),
+        1e6,
     ],
 )
 def test_vdp_discover_selects_the_same_terms_in_any_units(unit, vdp_discovery):
@@ -1357,15 +1333,6 @@ def test_discover_reports_mme_non_convergence(monkeypatch):
     assert "MME did not converge" in str(result)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="discover ignores OutputErrorResult.converged: a refit that stops at "
-    "max_nfev or on a garbage Jacobian is used without a word (the Van der Pol "
-    "record in units of 1e6 ends with coefficients 20-58% off). Fix in "
-    "discovery.py after confirm_terms: if the final fit (or the assumed fit) has "
-    "converged False, notes.append('the output-error refit did not converge "
-    "(<message>); coefficients may be inaccurate') -> DiscoveryWarning.",
-)
 def test_discover_reports_refit_non_convergence(monkeypatch):
     original = OutputErrorProblem.fit
 
@@ -1378,14 +1345,6 @@ def test_discover_reports_refit_non_convergence(monkeypatch):
         _discover(feature_library=ps.PolynomialLibrary(degree=3))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="run_discover (cli.py) turns only ValueError/TypeError from discover "
-    "into 'pysindy-mme: error: ...' and exit code 2; the DivergenceError of a "
-    "model that blows up on the user's data escapes as a traceback (exit code "
-    "1). Fix: catch (ValueError, TypeError, FloatingPointError) there "
-    "(DivergenceError is a FloatingPointError).",
-)
 def test_cli_model_that_blows_up_is_a_one_line_error(tmp_path):
     with pytest.raises(CommandLineError, match="blows up within one sample interval"):
         _cli(tmp_path, ("--model", f"{tmp_path / 'model.py'}:explodes"))
