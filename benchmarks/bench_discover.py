@@ -30,19 +30,22 @@ from pysindy_mme.systems import (
 
 def study(system, library_factory, seeds, assumed=None):
     exact, errors, rmse, times, found_any = 0, [], [], [], 0
-    (state, truth), = system.hidden_terms.items()
+    ((state, truth),) = system.hidden_terms.items()
     for seed in seeds:
         data = system.measure(seed)
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = discover(
-                data.y, data.t,
+                data.y,
+                data.t,
                 assumed_model=assumed or system.assumed_model,
-                n_states=system.n_states, measured=list(system.measured),
+                n_states=system.n_states,
+                measured=list(system.measured),
                 noise_variance=system.noise_variance,
                 error_states=list(system.error_states),
-                feature_library=library_factory(), feature_names=system.feature_names,
+                feature_library=library_factory(),
+                feature_names=system.feature_names,
                 u=data.u,
             )
         times.append(time.perf_counter() - start)
@@ -63,32 +66,56 @@ def main():
     n = len(seeds)
     vdp = van_der_pol()
     cases = [
-        ("Van der Pol (paper), x1 only, PolynomialLibrary(3)", vdp,
-         lambda: ps.PolynomialLibrary(degree=3), None),
-        ("Van der Pol (paper), x1 only, PowerLibrary (Table I)", vdp, PowerLibrary,
-         None),
-        ("Duffing cubic stiffness, x1 only, PolynomialLibrary(3)", duffing(),
-         lambda: ps.PolynomialLibrary(degree=3), None),
-        ("Quadratic drag, x1 only, PowerLibrary", quadratic_drag(), PowerLibrary,
-         None),
-        ("Lotka-Volterra coupling, both measured, PolynomialLibrary(2)",
-         lotka_volterra(), lambda: ps.PolynomialLibrary(degree=2), None),
-        ("Forced oscillator input gain, x1 only, PolynomialLibrary(2)",
-         forced_oscillator(), lambda: ps.PolynomialLibrary(degree=2), None),
+        (
+            "Van der Pol (paper), x1 only, PolynomialLibrary(3)",
+            vdp,
+            lambda: ps.PolynomialLibrary(degree=3),
+            None,
+        ),
+        (
+            "Van der Pol (paper), x1 only, PowerLibrary (Table I)",
+            vdp,
+            PowerLibrary,
+            None,
+        ),
+        (
+            "Duffing cubic stiffness, x1 only, PolynomialLibrary(3)",
+            duffing(),
+            lambda: ps.PolynomialLibrary(degree=3),
+            None,
+        ),
+        ("Quadratic drag, x1 only, PowerLibrary", quadratic_drag(), PowerLibrary, None),
+        (
+            "Lotka-Volterra coupling, both measured, PolynomialLibrary(2)",
+            lotka_volterra(),
+            lambda: ps.PolynomialLibrary(degree=2),
+            None,
+        ),
+        (
+            "Forced oscillator input gain, x1 only, PolynomialLibrary(2)",
+            forced_oscillator(),
+            lambda: ps.PolynomialLibrary(degree=2),
+            None,
+        ),
     ]
     print(f"discover() over {n} noise seeds per case (2-core machine)\n")
-    print("| case | exact terms | median largest coef. error | "
-          "median RMSE to truth | s / study |")
+    print(
+        "| case | exact terms | median largest coef. error | "
+        "median RMSE to truth | s / study |"
+    )
     print("|---|---|---|---|---|")
     for label, system, lib, assumed in cases:
         exact, errors, rmse, times, _ = study(system, lib, seeds, assumed)
         err = f"{np.median(errors):.4f}" if errors else "n/a"
         rm = f"{np.median(rmse):.4f}" if rmse else "n/a"
         print(f"| {label} | {exact}/{n} | {err} | {rm} | {np.mean(times):.2f} |")
-    _, _, _, times, found_any = study(vdp, lambda: ps.PolynomialLibrary(3), seeds,
-                                      assumed=vdp.true_model)
-    print(f"| Null: Van der Pol, assumed model = truth | false discoveries "
-          f"{found_any}/{n} | | | {np.mean(times):.2f} |")
+    _, _, _, times, found_any = study(
+        vdp, lambda: ps.PolynomialLibrary(3), seeds, assumed=vdp.true_model
+    )
+    print(
+        f"| Null: Van der Pol, assumed model = truth | false discoveries "
+        f"{found_any}/{n} | | | {np.mean(times):.2f} |"
+    )
 
 
 if __name__ == "__main__":

@@ -16,9 +16,15 @@ system = duffing()
 data = system.measure(seed=1)
 validation = system.measure(seed=2, x0=(-1.0, 1.0))
 result = discover(
-    data.y, data.t, assumed_model=system.assumed_model, n_states=2, measured=[0],
-    noise_variance=system.noise_variance, error_states=[1],
-    feature_library=ps.PolynomialLibrary(degree=3), feature_names=["x1", "x2"],
+    data.y,
+    data.t,
+    assumed_model=system.assumed_model,
+    n_states=2,
+    measured=[0],
+    noise_variance=system.noise_variance,
+    error_states=[1],
+    feature_library=ps.PolynomialLibrary(degree=3),
+    feature_names=["x1", "x2"],
     validation=(validation.y, validation.t),
     assumed_equations=["x2", "-x1 - 0.1 x2"],
 )
