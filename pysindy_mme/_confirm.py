@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ._model import rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
 
 __all__ = ["confirm_terms", "Confirmation", "make_problem_factory", "add_scores"]
@@ -85,6 +86,11 @@ def _p_add(cost_small, cost_big, n_res, n_params_big, n_added=1) -> float:
     dof = max(n_res - n_params_big, 1)
     f_stat = ((cost_small - cost_big) / n_added) / (cost_big / dof)
     return float(stats.f.sf(f_stat, n_added, dof)) if f_stat > 0 else 1.0
+
+
+def _bic(fit: OutputErrorResult, n_states: int) -> float:
+    """Bayesian information criterion of an output-error fit (up to a constant)."""
+    return fit.cost + (fit.params.size - n_states) * np.log(max(fit.n_residuals, 2))
 
 
 def _wald_p(fit: OutputErrorResult, n_states: int) -> np.ndarray:
@@ -134,14 +140,7 @@ def add_scores(problem: OutputErrorProblem, fit: OutputErrorResult, candidates, 
                 out[:, state] += coef[j] * theta[:, pos]
         return out
 
-    jac = np.empty((x.shape[0], n, n))
-    h = 1e-6 * np.maximum(np.abs(x), 1.0)
-    for j in range(n):
-        xp, xm = x.copy(), x.copy()
-        xp[:, j] += h[:, j]
-        xm[:, j] -= h[:, j]
-        with np.errstate(all="ignore"):
-            jac[:, :, j] = (rhs_rows(xp) - rhs_rows(xm)) / (2 * h[:, [j]])
+    jac = rowwise_jacobian(rhs_rows, x, rel_step=1e-6)
     z = x if u is None else np.hstack([x, u])
     cols = sorted({c for _, c in candidates})
     pos = {c: k for k, c in enumerate(cols)}
@@ -266,6 +265,25 @@ def confirm_terms(
     def polish(slots, params0):
         return make_problem(slots).fit(np.asarray(params0, dtype=float))
 
+    def backward(slots, fit, fitter):
+        """Drop terms whose coefficient is not significant, weakest first."""
+        removed = []
+        while slots:
+            pvals = _wald_p(fit, n_states)
+            worst = int(np.argmax(pvals))
+            if pvals[worst] <= alpha_term:
+                break
+            removed.append((slots[worst], float(pvals[worst])))
+            keep = [k for k in range(len(slots)) if k != worst]
+            slots = [slots[k] for k in keep]
+            if not slots:
+                return [], assumed_fit, removed
+            fit = fitter(
+                slots,
+                np.concatenate([fit.params[:n_states], fit.params[n_states:][keep]]),
+            )
+        return slots, fit, removed
+
     def refit(slots, params0):
         # trial refits stop early; the chosen model is polished at the end
         return make_problem(slots).fit(
@@ -319,12 +337,14 @@ def confirm_terms(
         # ---- 2. swap: could a look-alike library function do a term's job
         # better? (The regression of d cannot tell x2 from x2 |x2|; the
         # measurements can.) Look-alikes: the functions of the same equation
-        # most correlated with the term along the current simulation.
+        # most correlated with the term along the current simulation. A swap
+        # may make other terms redundant, so each trial is pruned backward and
+        # the models are compared by BIC (fit and size together).
         for slot in list(slots) if search else []:
             if slot not in slots or slot in swap_checked:
                 continue
             swap_checked.add(slot)
-            best_fit, best_slot = None, None
+            best = None
             for alt, ratio in _look_alikes(
                 make_problem(slots), current, slot, library_candidates, slots
             ):
@@ -333,46 +353,35 @@ def confirm_terms(
                 params0 = current.params.copy()
                 params0[n_states + k] *= ratio
                 trial = refit(trial_slots, params0)
-                if trial.cost < current.cost and (
-                    best_fit is None or trial.cost < best_fit.cost
+                trial_slots, trial, _ = backward(trial_slots, trial, refit)
+                if _bic(trial, n_states) < _bic(current, n_states) and (
+                    best is None or _bic(trial, n_states) < _bic(best[1], n_states)
                 ):
-                    best_fit, best_slot = trial, alt
-            if best_fit is not None:
-                log.append(f"swapped {describe(slot)} for {describe(best_slot)}")
-                rejected.append(
-                    (
-                        slot,
-                        f"replaced by {describe(best_slot)}, "
-                        "which fits the data better",
-                    )
-                )
-                slots[slots.index(slot)] = best_slot
-                current = polish(slots, best_fit.params)
-                tried.add(best_slot)
+                    best = (trial_slots, trial, alt)
+            if best is not None:
+                new_slots, trial, alt = best
+                log.append(f"swapped {describe(slot)} for {describe(alt)}")
+                for gone in slots:
+                    if gone not in new_slots:
+                        why = (
+                            f"replaced by {describe(alt)}, which fits the data better"
+                            if gone == slot
+                            else f"redundant once {describe(alt)} is in"
+                        )
+                        rejected.append((gone, why))
+                slots, current = new_slots, polish(new_slots, trial.params)
+                tried.add(alt)
                 changed = True
         # ---- 3. backward ----
-        while slots:
-            pvals = _wald_p(current, n_states)
-            worst = int(np.argmax(pvals))
-            if pvals[worst] <= alpha_term:
-                break
-            slot = slots[worst]
-            keep = [k for k in range(len(slots)) if k != worst]
-            slots = [slots[k] for k in keep]
+        slots, current, removed = backward(slots, current, polish)
+        for slot, p_val in removed:
             rejected.append(
-                (slot, f"not significant in the joint refit (p = {pvals[worst]:.2g})")
+                (slot, f"not significant in the joint refit (p = {p_val:.2g})")
             )
-            log.append(f"removed {describe(slot)} (p = {pvals[worst]:.2g})")
+            log.append(f"removed {describe(slot)} (p = {p_val:.2g})")
             changed = True
-            if not slots:
-                current = assumed_fit
-                break
-            current = polish(
-                slots,
-                np.concatenate(
-                    [current.params[:n_states], current.params[n_states:][keep]]
-                ),
-            )
+        if not slots:
+            current = assumed_fit
         # ---- 4. forward over the library ----
         if not search:
             break

@@ -27,7 +27,7 @@ from sklearn.base import clone
 from . import _validation as val
 from ._confirm import Confirmation, confirm_terms, make_problem_factory
 from ._features import SelectedFeatures
-from ._model import as_model_function
+from ._model import as_model_function, rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
 from ._report import format_discovery
 from .extended import ExtendedModel
@@ -595,6 +595,16 @@ def discover(
             "the output-error fit of the assumed model did not converge "
             f"({assumed_fit.message})"
         )
+    if extended_fit is not None:
+        dof_e = max(extended_fit.n_residuals - extended_fit.params.size, 1)
+        p_e = float(stats.chi2.sf(extended_fit.cost, dof_e))
+        if p_e < alpha:
+            notes.append(
+                "the extended model still does not fit the data to the noise level "
+                f"(chi2 = {extended_fit.cost:.4g} on {dof_e} dof, p = {p_e:.2g}): "
+                "the library may lack the missing effect, the noise variance may be "
+                "too small, or the search stopped in a local optimum"
+            )
     if refit and extended_fit is not None and not extended_fit.converged:
         notes.append(
             "the output-error refit of the extended model did not converge "
@@ -783,7 +793,6 @@ def _rk4_substeps(f, features, reg_coef, x_hat, t, u):
     plus proposed correction) along the MME trajectory sets the fastest time
     scale; RK4 is accurate to ~1e-5 relative per step at ``h rho = 0.5``.
     """
-    n = x_hat.shape[1]
     stride = max(1, x_hat.shape[0] // 200)  # a sample of points is enough
     xs, ts = x_hat[::stride], t[::stride]
     us = None if u is None else u[::stride]
@@ -796,14 +805,7 @@ def _rk4_substeps(f, features, reg_coef, x_hat, t, u):
             out = out + features(z, columns) @ reg_coef[:, columns].T
         return out
 
-    jac = np.empty((xs.shape[0], n, n))
-    h = 1e-6 * np.maximum(np.abs(xs), 1.0)
-    for j in range(n):
-        xp, xm = xs.copy(), xs.copy()
-        xp[:, j] += h[:, j]
-        xm[:, j] -= h[:, j]
-        with np.errstate(all="ignore"):
-            jac[:, :, j] = (model(xp) - model(xm)) / (2 * h[:, [j]])
+    jac = rowwise_jacobian(model, xs, rel_step=1e-6)
     jac[~np.isfinite(jac)] = 0.0
     rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
     dt = float(np.max(np.diff(t)))
