@@ -189,16 +189,25 @@ class MME(BaseDifferentiation):
     Notes
     -----
     pysindy calls the differentiation method once per trajectory; the
-    attributes describe the last call. The previous call's ``W_`` is the
-    starting point of the next W search (this changes speed, not results).
+    attributes describe the last call. Each call starts from scratch (the
+    W search from the reference scale), so the result does not depend on
+    what the estimator fitted before: the same inputs give bit-identical
+    results. The data may be in any units: the solver works internally in
+    units of (a power of two near) the noise standard deviation, and every
+    attribute is in the data's units.
     Missing measurements (NaN) are allowed when calling :meth:`fit` directly
-    (pysindy's own input checks reject NaN). Irregular sampling is fine.
+    (pysindy's own input checks reject NaN); every measured channel needs at
+    least 2 observed values. Irregular sampling is fine.
 
     Errors: ``ValueError``/``TypeError`` naming the argument for bad input
     (checked before any long computation), including states that no
-    measurement can see; :class:`~pysindy_mme.smoother.DivergenceError` (a
-    ``FloatingPointError``) if the assumed model blows up between samples;
-    ``ConvergenceWarning`` if Gauss-Newton stops early.
+    measurement can see (found structurally up front, or numerically when
+    the estimation problem turns out singular, naming the unseen direction);
+    :class:`~pysindy_mme.smoother.DivergenceError` (a ``FloatingPointError``)
+    if the assumed model blows up between samples or amplifies perturbations
+    a million-fold within one sample interval along the estimate (unstable
+    or stiff at the sampling rate); ``ConvergenceWarning`` if Gauss-Newton
+    stops early.
     """
 
     def __init__(
@@ -280,8 +289,10 @@ class MME(BaseDifferentiation):
     # ---------------------------------------------------------- validation
     def _build(self, y, t, u):
         n = self.n_states
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"n_states must be a positive integer, got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+            raise TypeError(f"n_states must be a positive integer, got {n!r}")
+        if n < 1:
+            raise ValueError(f"n_states must be a positive integer, got {n}")
         n = int(n)
         model = as_model_function(self.assumed_model, n, name="assumed_model")
         if model.n_states != n:
@@ -295,6 +306,20 @@ class MME(BaseDifferentiation):
         N, m = y.shape
         if N < 3:
             raise ValueError(f"y (the measurements) needs at least 3 samples, got {N}")
+        observed = np.sum(~np.isnan(y), axis=0)
+        if not observed.any():
+            raise ValueError(
+                "y (the measurements) has no observed value (all NaN); NaN marks "
+                "a missing measurement"
+            )
+        if observed.min() < 2:
+            j = int(np.argmin(observed))
+            raise ValueError(
+                f"y (the measurements) column {j} has {int(observed[j])} observed "
+                "value(s) (the rest are NaN); every measured channel needs at "
+                "least 2. Drop the channel (measured / measurement_matrix) or "
+                "give more data"
+            )
         t = check_time(t, N, "t")
         for name in ("max_iter", "n_substeps"):
             val = getattr(self, name)
@@ -414,7 +439,8 @@ class MME(BaseDifferentiation):
                 f"{x0.shape}): {type(exc).__name__}: {exc}"
             ) from exc
         if callable(measurement):
-            Hpat = np.abs(smoother._measurement_jacobian(x0)).max(axis=0) > 0
+            jac = smoother._measurement_jacobian(x0 / smoother.unit)
+            Hpat = np.abs(jac).max(axis=0) > 0
         else:
             Hpat = measurement != 0
         hidden = unobservable_states(model, x0, t, ug, Hpat)
@@ -542,11 +568,12 @@ class MME(BaseDifferentiation):
         full solution is kept (a solution holds O(N) arrays).
         """
         q = smoother.q
-        lo = np.log(W_ref) - _W_DECADES * np.log(10.0)
-        hi = np.log(W_ref) + _W_DECADES * np.log(10.0)
-        guess = getattr(self, "_W_guess", None)
-        l0 = np.log(guess) if guess is not None and lo < np.log(guess) < hi else None
-        l0 = np.log(W_ref) if l0 is None else l0
+        # The search always starts at W_ref (never at a previous fit's W), so
+        # the same inputs give bit-identical results whatever the estimator
+        # fitted before.
+        l0 = np.log(W_ref)
+        lo = l0 - _W_DECADES * np.log(10.0)
+        hi = l0 + _W_DECADES * np.log(10.0)
         values = {}
         state = {"last": None, "last_logw": None, "n_iter": 0, "conv": True}
 
@@ -644,7 +671,6 @@ class MME(BaseDifferentiation):
                 best = float(opt.x) if opt.fun <= fm else mid
         res = run(best)
         history = sorted((float(np.exp(k)), float(v)) for k, v in values.items())
-        self._W_guess = float(np.exp(best))
         return (
             res,
             float(np.exp(best)),

@@ -37,16 +37,33 @@ restricted marginal likelihood of ``W`` is
 
 because ``|det K| = det(M) / prod_k det(h_k W)`` with ``M`` the Hessian of
 ``J / 2`` in the free variables ``(x_0, d)``.
+
+Units: the KKT pivots mix ``R^-1`` (state rows) with ``h W^-1`` (multiplier
+rows), so in the data's own units a noise variance far from one (data in
+nanometres, say) would spread them over more decades than double precision
+holds, and a well-posed problem would look singular. The solver therefore
+works internally in units of ``s``, a power of two near the noise standard
+deviation: ``z = x / s``, ``y / s``, ``R / s^2``, ``f(s z) / s``,
+``g(s z) / s``, ``W s^2``. A power of two makes the change of units exact in
+floating point; everything public is in the user's units.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import lapack
 
 from ._model import ModelFunction
+
+# A KKT pivot below this fraction of the largest one triggers the
+# observability check (see MMESmoother._solve_kkt).
+_SUSPECT_PIVOT = 1e-10
+# Growth of a perturbation over one interval (max |A_k|) beyond which the
+# linearised model is treated as exploding.
+_MAX_GROWTH = 1e6
 
 __all__ = [
     "DivergenceError",
@@ -58,6 +75,28 @@ __all__ = [
 
 class DivergenceError(FloatingPointError):
     """The assumed model or the iteration produced non-finite / exploding values."""
+
+
+def internal_unit(R) -> float:
+    """The solver's internal unit: a power of two near the noise's std. dev.
+
+    With ``R / s^2`` of order one the KKT pivots of the state rows
+    (``~ R^-1``) and of the multiplier rows (``~ h W^-1 ~ R`` at the
+    reference weight) are of order one together, whatever the data's units.
+    """
+    sd = float(np.sqrt(np.mean(np.diag(np.atleast_2d(R)))))
+    return float(np.ldexp(1.0, int(np.round(np.log2(sd)))))
+
+
+def _scaled_model(model: ModelFunction, unit: float) -> ModelFunction:
+    """``f_s(z) = f(s z) / s``; its finite-difference Jacobian steps in ``z``."""
+    if unit == 1.0:
+        return model
+
+    def f(z, t, u):
+        return model(unit * z, t, u) / unit
+
+    return ModelFunction(f, model.n_states, name=model.name)
 
 
 @dataclass
@@ -154,6 +193,14 @@ class MMESmoother:
     x_init : ndarray (N, n) or None
         Initial trajectory; by default the measured states are taken from the
         data (interpolated over missing samples) and the others are zero.
+
+    Attributes
+    ----------
+    unit : float
+        The internal unit ``s`` (:func:`internal_unit`). ``y``, ``R``,
+        ``model``, :meth:`initial_guess` and everything :meth:`solve` takes
+        and returns are in the user's units; the underscored internals
+        (``Rinv``, linearisations, KKT) are in units of ``s``.
     """
 
     def __init__(
@@ -185,15 +232,26 @@ class MMESmoother:
         self._u = u
         self._u_cache = {}
         self.mask = ~np.isnan(self.y)
-        self.y0 = np.where(self.mask, self.y, 0.0)
         self.n_obs = int(self.mask.sum())
+        self.R = np.asarray(R, dtype=float)
+        # Internal units (see the module docstring): a linear measurement
+        # y = C x is unit-free; g and f are wrapped.
+        s = self.unit = internal_unit(self.R)
+        self._f = _scaled_model(model, s)
+        self._y0 = np.where(self.mask, self.y / s, 0.0)
         if callable(measurement):
             self.C = None
-            self.g = measurement
-            self.g_jac = measurement_jacobian
+            self._g = (lambda z: measurement(s * z) / s) if s != 1.0 else measurement
+            self._g_jac = None
+            if measurement_jacobian is not None:
+                self._g_jac = (
+                    (lambda z: measurement_jacobian(s * z))
+                    if s != 1.0
+                    else measurement_jacobian
+                )
         else:
             self.C = np.asarray(measurement, dtype=float)
-        self._set_noise(np.asarray(R, dtype=float))
+        self._set_noise(self.R / s**2)
         # Columns of E (the error states) in the [x, d] derivative layout.
         self._Eb = np.zeros((self.n, self.n + self.q))
         self._Eb[self.es, self.n + np.arange(self.q)] = 1.0
@@ -204,8 +262,10 @@ class MMESmoother:
 
     # ------------------------------------------------------------------ setup
     def _set_noise(self, R):
-        """Per-sample inverse covariances, with missing channels dropped."""
-        self.R = R
+        """Per-sample inverse covariances, missing channels dropped.
+
+        ``R`` in internal units; sets ``Rinv`` and ``_logdetR``.
+        """
         patterns, inverse = np.unique(self.mask, axis=0, return_inverse=True)
         inverse = np.asarray(inverse).ravel()
         self.Rinv = np.zeros((self.N, self.m, self.m))
@@ -244,18 +304,19 @@ class MMESmoother:
             return np.asarray(self._u(self.t), dtype=float).reshape(self.N, -1)
         return self._u
 
-    def measure(self, x):
-        """``g(x)`` on the whole trajectory."""
+    def _measure(self, z):
+        """``g(z)`` on the whole trajectory (internal units)."""
         if self.C is not None:
-            return x @ self.C.T
-        out = np.asarray(self.g(x), dtype=float)
+            return z @ self.C.T
+        out = np.asarray(self._g(z), dtype=float)
         return out.reshape(self.N, self.m)
 
     def _measurement_jacobian(self, x):
+        """``dg/dx`` (unit-free) at internal-unit ``x``: (m, n) or (N, m, n)."""
         if self.C is not None:
             return self.C
-        if self.g_jac is not None:
-            return np.asarray(self.g_jac(x), dtype=float).reshape(
+        if self._g_jac is not None:
+            return np.asarray(self._g_jac(x), dtype=float).reshape(
                 self.N, self.m, self.n
             )
         jac = np.empty((self.N, self.m, self.n))
@@ -265,11 +326,13 @@ class MMESmoother:
             xm = x.copy()
             xp[:, j] += step[:, j]
             xm[:, j] -= step[:, j]
-            jac[:, :, j] = (self.measure(xp) - self.measure(xm)) / (2.0 * step[:, [j]])
+            jac[:, :, j] = (self._measure(xp) - self._measure(xm)) / (
+                2.0 * step[:, [j]]
+            )
         return jac
 
     def initial_guess(self):
-        """Trajectory from the data (or ``x_init``) and ``d = 0``."""
+        """Trajectory from the data (or ``x_init``) and ``d = 0`` (user units)."""
         d = np.zeros((self.N - 1, self.q))
         if self.x_init is not None:
             return self.x_init.copy(), d
@@ -338,7 +401,7 @@ class MMESmoother:
         if jacobian:
             D = np.zeros((K, n, n + q))
             D[:, :, :n] = np.eye(n)
-        f = self.model
+        f = self._f
         for j in range(s):
             c0 = j / s
             tj = t0 + c0 * h
@@ -367,15 +430,20 @@ class MMESmoother:
 
     def _check_flow(self, phi, x):
         """Raise if one interval of the model explodes (or is not finite)."""
-        jump = np.abs(phi - x[:-1])
-        bad = ~np.isfinite(phi).all(axis=1) | (jump.max(axis=1) > 1e6 * self.scale(x))
+        with np.errstate(all="ignore"):
+            jump = np.abs(phi - x[:-1])
+            bad = ~np.isfinite(phi).all(axis=1) | (
+                jump.max(axis=1) > 1e6 * self.scale(x)
+            )
         if bad.any():
             k = int(np.argmax(bad))
+            with np.errstate(all="ignore"):
+                x_k, phi_k = x[k] * self.unit, phi[k] * self.unit
             raise DivergenceError(
                 "assumed_model blows up within one sample interval (interval "
                 f"{k}, t = {self.t[k]:.6g} to {self.t[k + 1]:.6g}, starting from "
-                f"x = {np.asarray(x[k]).tolist()}): integrating it there gives "
-                f"{phi[k].tolist()}. The model is unstable or stiff at this "
+                f"x = {x_k.tolist()}): integrating it there gives "
+                f"{phi_k.tolist()}. The model is unstable or stiff at this "
                 "sampling rate; check the model and the units of the data, or "
                 "increase n_substeps."
             )
@@ -388,13 +456,32 @@ class MMESmoother:
                 "the Jacobian of assumed_model is not finite along the current "
                 "trajectory; the model cannot be linearised there"
             )
-        r = np.where(self.mask, self.y0 - self.measure(x), 0.0)
+        growth = np.abs(A).max(axis=(1, 2))
+        if growth.max() > _MAX_GROWTH:
+            # A perturbation that grows a million-fold within one interval
+            # (a model with finite-time blow-up near the trajectory, or RK4
+            # far outside its stability region) makes the linearisation, and
+            # with it the KKT system, numerically meaningless. Without this
+            # the W search runs on until the KKT matrix looks singular and
+            # the error blames observability.
+            k = int(np.argmax(growth))
+            raise DivergenceError(
+                "assumed_model amplifies perturbations by a factor of "
+                f"{growth[k]:.3g} within one sample interval (interval {k}, "
+                f"t = {self.t[k]:.6g} to {self.t[k + 1]:.6g}, at x = "
+                f"{(x[k] * self.unit).tolist()}): it is unstable or stiff at "
+                "this sampling rate, at least near the estimated trajectory. "
+                "Check the model and the units of the data, or increase "
+                "n_substeps."
+            )
+        r = np.where(self.mask, self._y0 - self._measure(x), 0.0)
         H = self._measurement_jacobian(x)
         return _Linearization(x=x, d=d, A=A, G=G, defects=phi - x[1:], r=r, H=H)
 
     # ----------------------------------------------------------------- costs
     def residuals(self, x):
-        return np.where(self.mask, self.y0 - self.measure(x), 0.0)
+        """``y - g(x)`` in internal units, 0 where ``y`` is missing."""
+        return np.where(self.mask, self._y0 - self._measure(x), 0.0)
 
     def measurement_cost(self, r):
         return float(np.einsum("ki,kij,kj->", r, self.Rinv, r))
@@ -412,8 +499,10 @@ class MMESmoother:
         storage); ``abT`` is its transpose in C order, so ``abT.T`` is the
         Fortran-ordered array dgbtrf factorises in place without a copy.
 
-        Returns ``(lu, piv, HR, GW, logdet)`` with ``HR = H^T R^-1`` and
-        ``GW = G W^-1``. Raises ``LinAlgError`` if the matrix is singular.
+        Returns ``(lu, piv, HR, GW, logdet, pivot_ratio)`` with
+        ``HR = H^T R^-1``, ``GW = G W^-1`` and ``pivot_ratio`` the smallest
+        over the largest pivot magnitude. Raises ``LinAlgError`` if a pivot
+        is exactly zero (or the pivots are not finite).
         """
         n, N = self.n, self.N
         kl = ku = 2 * n - 1
@@ -464,11 +553,11 @@ class MMESmoother:
         if info < 0:  # pragma: no cover - a bug, not a user error
             raise RuntimeError(f"dgbtrf: illegal argument {-info}")
         udiag = np.abs(lu[diag])
-        tiny = np.finfo(float).eps * max(1.0, float(np.max(udiag))) * 1e-2
-        if info > 0 or float(np.min(udiag)) <= tiny:
+        umax = float(np.max(udiag))
+        if info > 0 or not (np.isfinite(umax) and umax > 0):
             raise np.linalg.LinAlgError("singular KKT system")
         logdet = float(np.sum(np.log(udiag)))
-        return lu, piv, HR, GW, logdet
+        return lu, piv, HR, GW, logdet, float(np.min(udiag)) / umax
 
     def _kkt_solve(self, lu, piv, rhs):
         """Solve with the factorised KKT matrix; ``rhs`` is (N, 2n[, k])."""
@@ -480,9 +569,20 @@ class MMESmoother:
         return sol.reshape(shape)
 
     def _solve_kkt(self, lin: _Linearization, W, Winv):
-        """One Gauss-Newton subproblem: returns (dx, d_new, lam, logdet)."""
+        """One Gauss-Newton subproblem: returns (dx, d_new, lam, logdet).
+
+        Raises ``LinAlgError`` if the subproblem is singular.
+        """
         n, N = self.n, self.N
-        lu, piv, HR, GW, logdet = self._factor_kkt(lin, W, Winv)
+        lu, piv, HR, GW, logdet, pivot_ratio = self._factor_kkt(lin, W, Winv)
+        # A zero pivot computed in floating point is rarely exactly zero (it
+        # is rounding, ~1e-16 relative), while a weakly determined but
+        # well-posed problem (a tiny W lets the unmeasured states wander) has
+        # legitimately tiny pivots too, so the pivots alone cannot tell the
+        # two apart: a suspiciously small one is settled by the observability
+        # of the linearisation, which does not depend on W.
+        if pivot_ratio <= _SUSPECT_PIVOT and self._unobservable_directions(lin):
+            raise np.linalg.LinAlgError("singular KKT system")
         rhs = np.zeros((N, 2 * n))
         rhs[:, :n] = np.einsum("kib,kb->ki", HR, lin.r)
         rhs[:-1, n:] = -lin.defects + np.einsum("kiq,kq->ki", lin.G, lin.d)
@@ -494,16 +594,42 @@ class MMESmoother:
 
     # ----------------------------------------------------------------- solve
     def solve(self, W, start: SmootherResult | None = None) -> SmootherResult:
-        """Gauss-Newton with an l1-merit line search for a fixed ``W``."""
+        """Gauss-Newton with an l1-merit line search for a fixed ``W``.
+
+        ``W`` and ``start`` (a previous result of this smoother, the warm
+        start) and the result are in the user's units.
+        """
         W = np.atleast_2d(np.asarray(W, dtype=float))
         if W.shape == (1, 1) and self.q != 1:
             W = W[0, 0] * np.eye(self.q)
-        Winv = np.linalg.inv(W)
+        s = self.unit
         if start is not None and start._lin is not None:
             lin = start._lin
         else:
             x, d = (start.x, start.d) if start is not None else self.initial_guess()
-            lin = self.linearize(x, d)
+            lin = self.linearize(x / s, d / s)
+        res = self._solve(W * s**2, lin)
+        # Back to the user's units. J is unit-free; the multipliers (of J / 2
+        # against defects in x) scale as 1 / s; the density of the N_obs
+        # observations given the n free initial states as s^-(N_obs - n),
+        # hence |det K| as s^-2n (flat prior on x_0, see the docstring).
+        log_s = float(np.log(s))
+        return dataclasses.replace(
+            res,
+            W=W,
+            x=res.x * s,
+            d=res.d * s,
+            lam=res.lam / s,
+            residuals=res.residuals * s,
+            logdet=res.logdet - 2.0 * self.n * log_s,
+            neg2_log_likelihood=res.neg2_log_likelihood
+            + 2.0 * (self.n_obs - self.n) * log_s,
+            max_defect=res.max_defect * s,
+        )
+
+    def _solve(self, W, lin: _Linearization) -> SmootherResult:
+        """:meth:`solve` in internal units from the linearisation ``lin``."""
+        Winv = np.linalg.inv(W)
         x, d = lin.x, lin.d
         r = lin.r
         meas = self.measurement_cost(r)
@@ -517,12 +643,7 @@ class MMESmoother:
             try:
                 dx, d_new, lam, logdet = self._solve_kkt(lin, W, Winv)
             except np.linalg.LinAlgError:
-                raise np.linalg.LinAlgError(
-                    "the estimation problem is singular: the states are not all "
-                    "observable from the measurements, so the initial state (no "
-                    "prior is used) or the model error is undetermined"
-                    + self._describe_unobservable(lin)
-                ) from None
+                self._raise_singular(lin)
             dd = d_new - d
             if not (np.isfinite(dx).all() and np.isfinite(dd).all()):
                 raise DivergenceError(
@@ -627,39 +748,73 @@ class MMESmoother:
             and np.max(np.abs(new.defects), initial=0.0) <= tol * self.scale(new.x)
         )
 
-    def _describe_unobservable(self, lin, max_steps: int = 400) -> str:
-        """Name the initial-state directions no measurement sees (for errors).
+    def _raise_singular(self, lin):
+        """The KKT system is singular: say what cannot be observed."""
+        directions = self._unobservable_directions(lin)
+        if directions is None:
+            detail = ": nothing is measured"
+        elif directions:
+            detail = (
+                "; the measurements do not see the initial-state direction(s) "
+                + "; ".join(f"[{p}]" for p in directions)
+                + " (state indices from 0)"
+            )
+        else:
+            detail = ""
+        raise np.linalg.LinAlgError(
+            "the estimation problem is singular: the states are not all "
+            "observable from the measurements, so the initial state (no "
+            "prior is used) or the model error is undetermined" + detail
+        )
+
+    def _unobservable_directions(self, lin, max_steps: int = 1000):
+        """The initial-state directions no measurement sees, as text.
 
         Stacks ``H_k Phi(k, 0)`` (the linearised sensitivity of the k-th
-        measurement to ``x_0``) over the first samples and reports the right
-        singular vectors with negligible singular values.
+        measurement to ``x_0``, with the model error held at zero) over the
+        first ``max_steps`` samples (so a state first seen later than that
+        would be reported; the check is only consulted when the KKT system
+        looks singular) and returns the right singular vectors with negligible
+        singular values, each written as ``+1 x0 -1 x1``; ``[]`` if there are
+        none, ``None`` if nothing is measured there. ``Phi`` is renormalised
+        at every step: only the directions matter, and an unstable model
+        would otherwise overflow it.
         """
+        n = self.n
         K = min(self.N, max_steps)
-        rows = []
-        P = np.eye(self.n)
-        for k in range(K):
-            Hk = lin.H if lin.H.ndim == 2 else lin.H[k]
-            rows.append(Hk[self.mask[k]] @ P)
-            if k < self.N - 1:
-                P = lin.A[k] @ P
-        O = np.vstack(rows) if rows else np.zeros((0, self.n))
+        P = np.empty((K, n, n))
+        P[0] = np.eye(n)
+        for k in range(1, K):
+            Pk = lin.A[k - 1] @ P[k - 1]
+            size = float(np.max(np.abs(Pk)))
+            if not (np.isfinite(size) and size > 0):
+                K = k
+                break
+            P[k] = Pk / size
+        P = P[:K]
+        H = lin.H
+        O = np.einsum("ai,kij->kaj", H, P) if H.ndim == 2 else H[:K] @ P
+        O = O[self.mask[:K]]  # (observed values, n)
         if O.shape[0] == 0:
-            return ": nothing is measured"
-        _, sv, vt = np.linalg.svd(O, full_matrices=True)
-        sv = np.concatenate([sv, np.zeros(self.n - sv.size)])
+            return None
+        if not np.isfinite(O).all():
+            return []
+        try:
+            # R of a QR first: the SVD of a tall O only needs its n x n factor
+            if O.shape[0] > n:
+                O = np.linalg.qr(O, mode="r")
+            _, sv, vt = np.linalg.svd(O, full_matrices=True)
+        except np.linalg.LinAlgError:
+            return []
+        sv = np.concatenate([sv, np.zeros(n - sv.size)])
         null = vt[sv <= 1e-8 * max(sv.max(), 1e-300)]
-        if null.shape[0] == 0:
-            return ""
         parts = []
         for v in null:
             v = v / np.max(np.abs(v))
+            v = v * np.sign(v[np.flatnonzero(np.abs(v) > 1e-6)[0]])  # first is +
             terms = [f"{c:+.3g} x{j}" for j, c in enumerate(v) if abs(c) > 1e-6]
             parts.append(" ".join(terms))
-        return (
-            "; the measurements do not see the initial-state direction(s) "
-            + "; ".join(f"[{p}]" for p in parts)
-            + " (state indices from 0)"
-        )
+        return parts
 
     def _apply_R_H(self, lin, dx):
         """``Rinv_k H_k dx_k`` for every sample."""
@@ -680,11 +835,12 @@ def unobservable_states(
     """States that cannot influence any measurement (structural check).
 
     A state is seen if a measured quantity depends on it directly, or if it
-    drives (through a nonzero entry of ``df/dx``) a state that is seen. The
-    Jacobian pattern is taken as the union over a few samples of the initial
-    trajectory and random perturbations of them, so that a derivative that
-    happens to vanish on the initial guess (e.g. ``d(x1 x2)/dx1`` at
-    ``x2 = 0``) is not mistaken for a structural zero.
+    drives (through a nonzero entry of ``df/dx``) a state that is seen. An
+    entry counts as nonzero above ``1e-10`` times the largest entry of its
+    row (its equation). The pattern is the union over a few samples of the
+    initial trajectory and random perturbations of them, so that a
+    derivative that happens to vanish on the initial guess (e.g.
+    ``d(x1 x2)/dx1`` at ``x2 = 0``) is not mistaken for a structural zero.
 
     Returns
     -------
@@ -714,7 +870,12 @@ def unobservable_states(
             jac = model.jacobian(pts, ts, us)
         finite = np.isfinite(jac)
         mag = np.where(finite, np.abs(jac), 0.0)
-        pattern |= (mag > 1e-10 * max(1.0, float(mag.max(initial=0.0)))).any(axis=0)
+        # Relative to the largest entry of the same equation (row): one
+        # threshold for the whole Jacobian would erase a coupling of 1 next
+        # to a stiff -1e11 elsewhere (a model in the wrong units), and the
+        # error would wrongly blame observability.
+        row_max = np.maximum(mag.max(axis=-1, keepdims=True), np.finfo(float).tiny)
+        pattern |= (mag > 1e-10 * row_max).any(axis=0)
     seen = np.asarray(measurement_pattern, dtype=bool).any(axis=0)
     changed = True
     while changed:

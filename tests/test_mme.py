@@ -345,6 +345,11 @@ def _data():
     return m.y, m.t
 
 
+def _first(y):
+    """Mask of the first sample only."""
+    return (np.arange(len(y)) == 0)[:, None]
+
+
 def _three_state(x, t):
     # x3 drives nothing and is driven by nothing: no measurement sees it
     return np.column_stack([x[:, 1], -x[:, 0], np.zeros(len(x))])
@@ -395,6 +400,21 @@ def _three_state(x, t):
         ),
         (dict(assumed_model="f"), {}, TypeError, "assumed_model must be a callable"),
         (dict(n_states=0), {}, ValueError, "n_states must be a positive integer"),
+        # a non-integer type is a TypeError, as in discover
+        (dict(n_states=2.0), {}, TypeError, "n_states must be a positive integer"),
+        (dict(n_states=True), {}, TypeError, "n_states must be a positive integer"),
+        (
+            {},
+            dict(y_fn=lambda y: np.full_like(y, np.nan)),
+            ValueError,
+            r"y \(the measurements\) has no observed value \(all NaN\)",
+        ),
+        (
+            dict(measured=[0, 1]),
+            dict(y_fn=lambda y: np.column_stack([y, np.where(_first(y), y, np.nan)])),
+            ValueError,
+            r"y \(the measurements\) column 1 has 1 observed value",
+        ),
         (
             dict(assumed_model=_three_state, n_states=3, error_states=[2]),
             {},
@@ -413,6 +433,7 @@ def test_bad_input(no_solve, kwargs, fit, exc, match):
     y, t = _data()
     if fit.pop("y2", False):
         y = np.column_stack([y, y])
+    y = fit.pop("y_fn", lambda y: y)(y)
     t = fit.pop("t", t)
     args = dict(
         assumed_model=ignorance_model,

@@ -461,10 +461,6 @@ BAD_INPUTS = [
         lambda tmp: _mme_fit(y=np.full(Y.shape, np.nan)),
         ValueError,
         r"y \(the measurements\)",
-        xfail="all-NaN y reaches the solver, which reports 'the estimation problem "
-        "is singular ... nothing is measured'. Fix in MME._build after reading y: "
-        "`if np.all(np.isnan(y)): raise ValueError('y (the measurements) has no "
-        "observed value (all NaN)')`.",
     ),
     _bad(
         "MME: model returns the wrong shape",
@@ -1009,15 +1005,6 @@ def test_mme_is_deterministic_pure_and_leaves_inputs_alone():
     _assert_same_global_random_state(before)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="MME._tune starts the W search from the previous call's W "
-    "(self._W_guess), so refitting the same estimator (or fitting it after "
-    "another record, as pysindy does per trajectory) changes the result: by "
-    "~1e-13 on the same record, by ~1e-7 after another one. Fix in mme.py: "
-    "always start the bracket at W_ref (drop _W_guess), or store it only as a "
-    "fitted attribute that fit() does not read.",
-)
 def test_mme_refit_of_the_same_estimator_is_bit_identical():
     fresh = _mme_fit()
     reused = _mme()
@@ -1171,17 +1158,6 @@ def test_vdp_discover_selects_the_same_terms_in_any_units(unit, vdp_discovery):
         )
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="MMESmoother._factor_kkt declares the KKT matrix singular when "
-    "min|pivot| <= 1e-2 eps max|pivot|, but its pivots mix units (R^-1 in the "
-    "state rows, h W^-1 in the multiplier rows): with the noise variance "
-    "outside ~[1e-15, 1e15] in the data's units (data in nanometres, say) a "
-    "well-posed problem is rejected as 'not all observable'. Fix in mme.py: "
-    "solve in scaled units, y/s, R/s^2, f_s(z) = f(s z)/s, g_s(z) = g(s z)/s, "
-    "W s^2 with s = sqrt(mean diag R) (or the RMS of y), and scale the "
-    "outputs back; or equilibrate the KKT rows/columns before the test.",
-)
 @pytest.mark.parametrize("unit", [1e-9, 1e10])
 def test_mme_units_far_from_one(unit):
     base = _mme_fit()
@@ -1229,18 +1205,6 @@ def test_mme_exploding_model_is_a_clear_error():
     assert issubclass(DivergenceError, FloatingPointError)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="x2' = 50 x2^3 blows up in finite time: every W of the search hits "
-    "max_iter (~3 s), then the KKT matrix is singular and "
-    "MMESmoother._describe_unobservable's product of transition matrices "
-    "overflows, so the user reads 'SVD did not converge. Check measured / "
-    "measurement_matrix and error_states.' Fix in smoother.py: in solve(), when "
-    "the KKT factorisation fails and max|A_k| > 1e6 (or not finite), raise "
-    "DivergenceError ('assumed_model amplifies perturbations by ... within one "
-    "sample interval: unstable or stiff at this sampling rate'); normalise P "
-    "at each step of _describe_unobservable and catch LinAlgError there.",
-)
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_mme_model_with_finite_time_blowup_is_a_divergence_error():
     with pytest.raises(DivergenceError, match="unstable|blows up"):
@@ -1249,17 +1213,6 @@ def test_mme_model_with_finite_time_blowup_is_a_divergence_error():
         )
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="A model in the wrong units (x2' = -1e11 x1: stiff at 40 Hz) is "
-    "reported as 'error_states [1] cannot be seen in the measurements'. "
-    "unobservable_states (smoother.py) drops Jacobian entries below 1e-10 times "
-    "the largest entry of the whole Jacobian, so df1/dx2 = 1 vanishes next to "
-    "1e11. Fix: compare each entry with the largest of its own row (equation), "
-    "`mag > 1e-10 * np.maximum(mag.max(axis=-1, keepdims=True), tiny)`; the "
-    "first RK4 step then raises the intended 'blows up within one sample "
-    "interval ... check the units' DivergenceError.",
-)
 def test_mme_stiff_model_in_wrong_units_is_named():
     with pytest.raises(DivergenceError, match="blows up within one sample interval"):
         _mme_fit(assumed_model=lambda x, t: np.column_stack([x[:, 1], -1e11 * x[:, 0]]))

@@ -11,6 +11,11 @@
 3. For the integrated random walk (``x1' = x2, x2' = d``) it must approach
    the continuous-time smoother of the ``derivative`` package as the sampling
    gets finer, at the rate the zero-order hold predicts.
+4. A change of units ``x -> c x`` maps the problem onto itself (the model,
+   the measurement and ``R``, ``W`` transformed accordingly), so the estimate
+   must transform exactly, and the marginal likelihood as a density does.
+5. Failure diagnosis: unobservable directions are found at any noise level
+   and growth rate, a stiff model is not mistaken for an unobservable one.
 """
 
 import numpy as np
@@ -19,7 +24,8 @@ from derivative import Kalman
 from scipy.linalg import expm
 
 from pysindy_mme import MME
-from pysindy_mme.smoother import MMESmoother
+from pysindy_mme._model import ModelFunction
+from pysindy_mme.smoother import MMESmoother, internal_unit, unobservable_states
 from pysindy_mme.systems import duffing, van_der_pol
 
 # ---------------------------------------------------------------- reference
@@ -226,3 +232,148 @@ def test_blockwise_integration_matches_one_block(monkeypatch):
     blocks = MME(system.true_model, 2, **kw).fit(m.y, m.t)
     np.testing.assert_allclose(blocks.smoothed_x_, whole.smoothed_x_, rtol=1e-12)
     np.testing.assert_allclose(blocks.d_, whole.d_, rtol=1e-10, atol=1e-12)
+
+
+# ------------------------------------------------------------------- units
+
+
+def _duffing_in_units(c):
+    """Duffing (cubic) model and a nonlinear measurement in units of ``1/c``:
+    ``x_c = c x``, so ``f_c(x_c) = c f(x_c / c)``, ``g_c(x_c) = c g(x_c / c)``."""
+    system = duffing()
+
+    def model(x, t):
+        return c * system.assumed_model(x / c, t)
+
+    def measurement(x):
+        x = x / c
+        return c * np.column_stack([x[:, 0], x[:, 0] + 0.3 * x[:, 0] * x[:, 1]])
+
+    return model, measurement
+
+
+@pytest.mark.parametrize("unit", [1e-9, 3.7, 1e10])
+@pytest.mark.parametrize("W", [5.0, "ml"])
+def test_estimate_transforms_exactly_under_a_change_of_units(unit, W):
+    """The same problem in units of 1e-9 .. 1e10: x, d, W, the ratio and the
+    cost transform exactly; ``log p(y)`` as a density of ``N_obs`` values
+    given ``n`` free initial states: ``- (N_obs - n) log(unit)``.
+
+    Before the solver worked in internal units, the KKT pivots (R^-1 against
+    h W^-1) spread over ~unit^4 and these problems were rejected as singular.
+    """
+    m = duffing().measure(2, t=np.arange(0, 10, 0.05))
+    y = np.column_stack([m.y[:, 0], m.x[:, 0] + 0.3 * m.x[:, 0] * m.x[:, 1]])
+    y[:, 1] += 0.05 * np.random.default_rng(0).standard_normal(len(y))
+    y[::9, 1] = np.nan  # missing values count out of N_obs
+    R = np.array([0.01, 0.0025])
+    fits = []
+    for c in (1.0, unit):
+        model, g = _duffing_in_units(c)
+        w = W if isinstance(W, str) else W / c**2
+        mme = MME(
+            model,
+            2,
+            measurement_function=g,
+            noise_variance=R * c**2,
+            error_states=[1],
+            W=w,
+        )
+        fits.append(mme.fit(y * c, m.t))
+    base, scaled = fits
+    assert base.converged_ and scaled.converged_
+    rtol = 1e-6
+    np.testing.assert_allclose(scaled.smoothed_x_ / unit, base.smoothed_x_, rtol=rtol)
+    np.testing.assert_allclose(
+        scaled.d_ / unit, base.d_, rtol=rtol, atol=rtol * np.abs(base.d_).max()
+    )
+    assert scaled.W_ * unit**2 == pytest.approx(base.W_, rel=rtol)
+    np.testing.assert_allclose(scaled.covariance_ratio_, base.covariance_ratio_, rtol)
+    assert scaled.cost_ == pytest.approx(base.cost_, rel=rtol)
+    n_obs = int(np.sum(~np.isnan(y)))
+    shift = (n_obs - 2) * np.log(unit)
+    assert scaled.log_likelihood_ + shift == pytest.approx(
+        base.log_likelihood_, abs=1e-5
+    )
+
+
+def test_internal_unit_is_a_power_of_two_near_the_noise_sd():
+    for var in (1e-20, 0.01, 1.0, 7.0, 1e30):
+        s = internal_unit(np.array([[var]]))
+        assert np.log2(s) == int(np.log2(s))  # exact change of units
+        assert 2**-0.5 <= s / np.sqrt(var) <= 2**0.5
+
+
+# --------------------------------------------------------- failure diagnosis
+
+
+@pytest.mark.parametrize("noise_variance", [1e-12, 1e-2, 1.0, 1e8])
+@pytest.mark.parametrize("rate", [0.0, 60.0])
+def test_unobservable_direction_is_found_at_any_noise_level(noise_variance, rate):
+    """y sees only x0 + x1 of x' = rate x + d: x0(0) - x1(0) is undetermined.
+
+    In floating point the KKT pivot of that direction is rounding (~1e-16
+    relative), not zero, and a tiny W gives well-posed problems pivots as
+    small; the observability of the linearisation settles it (at 1.0 the
+    old pivot test let this through silently). With ``rate = 60`` the
+    transition matrices grow 4.5-fold per step (1e260 over 400 steps): they
+    are renormalised, so the direction is still named.
+    """
+    t = np.arange(1000) * 0.025
+    y = np.sqrt(noise_variance) * (
+        10 * np.sin(t)[:, None] + np.random.default_rng(0).standard_normal((t.size, 1))
+    )
+    mme = MME(
+        lambda x, t: rate * x,
+        2,
+        measurement_matrix=[[1.0, 1.0]],
+        noise_variance=noise_variance,
+        error_states=[0, 1],
+        W=1.0 / noise_variance,
+    )
+    with pytest.raises(ValueError, match=r"not all observable.*\[\+1 x0 -1 x1\]"):
+        mme.fit(y, t)
+
+
+def test_weakly_determined_problem_is_not_declared_singular(monkeypatch):
+    """At W = 1e-12 times the reference (the bottom of the W search) the
+    unmeasured velocity is nearly free and the KKT pivots span ~17 decades,
+    like a singular problem's: the observability check must be consulted
+    and clear it; the estimate then follows the data."""
+    checks = []
+    original = MMESmoother._unobservable_directions
+
+    def spy(self, lin, *args):
+        checks.append(original(self, lin, *args))
+        return checks[-1]
+
+    monkeypatch.setattr(MMESmoother, "_unobservable_directions", spy)
+    m = van_der_pol().measure(0)
+    mme = MME(
+        lambda x, t: np.column_stack([x[:, 1], np.zeros(len(x))]),
+        2,
+        measured=[0],
+        noise_variance=0.01,
+        error_states=[1],
+        W=0.025 / 0.01 * 1e-12,
+    ).fit(m.y, m.t)
+    assert checks and all(c == [] for c in checks)  # consulted, found none
+    assert mme.converged_
+    assert np.all(np.isfinite(mme.smoothed_x_))
+    np.testing.assert_allclose(mme.smoothed_x_[:, 0], m.y[:, 0], atol=1e-4)
+
+
+def test_stiff_equation_does_not_hide_the_coupling_of_another():
+    """x1' = x2, x2' = -1e11 x1 (a model in the wrong units): df1/dx2 = 1 is
+    tiny next to 1e11, but only relative to another equation; x2 drives the
+    measured x1 and is observable."""
+    model = ModelFunction(lambda x, t: np.column_stack([x[:, 1], -1e11 * x[:, 0]]), 2)
+    x = np.random.default_rng(0).standard_normal((50, 2))
+    t = np.arange(50) * 0.025
+    assert unobservable_states(model, x, t, None, np.array([[True, False]])) == []
+    # and a state that drives nothing measured is still found
+    model3 = ModelFunction(
+        lambda x, t: np.column_stack([x[:, 1], -1e11 * x[:, 0], 1e-12 * x[:, 2]]), 3
+    )
+    x3 = np.random.default_rng(1).standard_normal((50, 3))
+    assert unobservable_states(model3, x3, t, None, np.array([[1, 0, 0]])) == [2]
