@@ -194,25 +194,27 @@ def add_scores(problem: OutputErrorProblem, fit: OutputErrorResult, candidates, 
 N_LOOK_ALIKES = 2
 
 
-def _look_alikes(problem, fit, slot, library_candidates, slots):
-    """The library functions of ``slot``'s equation most like it.
-
-    Returns ``[(candidate slot, coefficient ratio)]``: correlation along the
-    current simulation ranks them, and the least-squares ratio of the two
-    columns scales the starting coefficient.
-    """
+def _simulated_inputs(problem, fit):
+    """Library input ``z`` (states, then inputs) along the current simulation."""
     x = problem._simulate(fit.params[None])[0]
     if not np.all(np.isfinite(x)):
-        return []
-    z = x if problem.u is None else np.hstack([x, problem.u])
-    pool = [c for c in library_candidates if c[0] == slot[0] and c not in slots]
-    if not pool:
+        return None
+    return x if problem.u is None else np.hstack([x, problem.u])
+
+
+def _most_alike(problem, z, ref, pool, n_best):
+    """The ``n_best`` columns of ``pool`` most correlated with ``ref`` along ``z``.
+
+    Returns ``[(candidate slot, coefficient ratio)]``, the ratio being the
+    least-squares multiple of the candidate that best matches ``ref`` (to
+    start its coefficient). Only candidates with correlation above 0.8.
+    """
+    if not pool or not np.all(np.isfinite(ref)) or np.std(ref) == 0:
         return []
     with np.errstate(all="ignore"):
-        cols = problem.features(z, [slot[1]] + [c[1] for c in pool])
-    ref, others = cols[:, 0], cols[:, 1:]
+        others = problem.features(z, [c[1] for c in pool])
     ok = np.all(np.isfinite(others), axis=0) & (np.std(others, axis=0) > 0)
-    if not np.all(np.isfinite(ref)) or np.std(ref) == 0 or not np.any(ok):
+    if not np.any(ok):
         return []
     rc = ref - ref.mean()
     oc = others - others.mean(axis=0)
@@ -220,8 +222,47 @@ def _look_alikes(problem, fit, slot, library_candidates, slots):
         corr = np.abs(oc.T @ rc) / (np.linalg.norm(oc, axis=0) * np.linalg.norm(rc))
         ratio = (others.T @ ref) / np.einsum("ij,ij->j", others, others)
     corr[~ok] = -1.0
-    order = np.argsort(corr)[::-1][:N_LOOK_ALIKES]
+    order = np.argsort(corr)[::-1][:n_best]
     return [(pool[k], float(ratio[k])) for k in order if corr[k] > 0.8]
+
+
+def _look_alikes(problem, fit, slot, library_candidates, slots):
+    """The library functions of ``slot``'s equation most like it."""
+    z = _simulated_inputs(problem, fit)
+    if z is None:
+        return []
+    pool = [c for c in library_candidates if c[0] == slot[0] and c not in slots]
+    with np.errstate(all="ignore"):
+        ref = problem.features(z, [slot[1]])[:, 0]
+    return _most_alike(problem, z, ref, pool, N_LOOK_ALIKES)
+
+
+def _merges(problem, fit, slots, library_candidates, n_states):
+    """Pairs of terms of one equation that a single library function may replace.
+
+    Two look-alike terms can share one job (``x2 |x2|`` and ``x2^3`` together
+    imitate ``x2``). For every pair, the function most like their fitted
+    combination along the current simulation. Yields
+    ``(i, j, candidate slot, coefficient)``.
+    """
+    z = _simulated_inputs(problem, fit)
+    if z is None:
+        return []
+    with np.errstate(all="ignore"):
+        cols = problem.features(z, [s[1] for s in slots])
+    coefs = fit.params[n_states:]
+    out = []
+    for i in range(len(slots)):
+        for j in range(i + 1, len(slots)):
+            if slots[i][0] != slots[j][0]:
+                continue
+            combo = coefs[i] * cols[:, i] + coefs[j] * cols[:, j]
+            pool = [
+                c for c in library_candidates if c[0] == slots[i][0] and c not in slots
+            ]
+            for cand, ratio in _most_alike(problem, z, combo, pool, 1):
+                out.append((i, j, cand, ratio))
+    return out
 
 
 def confirm_terms(
@@ -372,6 +413,35 @@ def confirm_terms(
                 slots, current = new_slots, polish(new_slots, trial.params)
                 tried.add(alt)
                 changed = True
+        # ---- 2b. merge: can one function do the job of two look-alikes?
+        for i, j, cand, coef in (
+            _merges(make_problem(slots), current, slots, library_candidates, n_states)
+            if search and len(slots) > 1
+            else []
+        ):
+            keep = [k for k in range(len(slots)) if k not in (i, j)]
+            trial_slots = [slots[k] for k in keep] + [cand]
+            params0 = np.concatenate(
+                [current.params[:n_states], current.params[n_states:][keep], [coef]]
+            )
+            trial = refit(trial_slots, params0)
+            trial_slots, trial, _ = backward(trial_slots, trial, refit)
+            if _bic(trial, n_states) < _bic(current, n_states):
+                pair = f"{describe(slots[i])} and {describe(slots[j])}"
+                log.append(f"merged {pair} into {describe(cand)}")
+                for gone in (slots[i], slots[j]):
+                    rejected.append(
+                        (
+                            gone,
+                            f"{pair} together replaced by "
+                            f"{describe(cand)}, fewer terms, as good a fit",
+                        )
+                    )
+                slots, current = trial_slots, polish(trial_slots, trial.params)
+                swap_checked.clear()  # the context changed: look again
+                tried.add(cand)
+                changed = True
+                break
         # ---- 3. backward ----
         slots, current, removed = backward(slots, current, polish)
         for slot, p_val in removed:
