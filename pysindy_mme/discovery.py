@@ -31,6 +31,8 @@ from ._model import as_model_function, rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
 from ._report import format_discovery
 from .extended import ExtendedModel
+from .mme import MME
+from .stepwise import FloatingFStepwise
 
 __all__ = ["discover", "Discovery", "ExtendedModel", "Gain", "TermEstimate"]
 
@@ -249,8 +251,6 @@ def _check_library(feature_library):
 
 def _check_optimizer(optimizer):
     if optimizer is None:
-        from .stepwise import FloatingFStepwise
-
         return FloatingFStepwise()
     if not (hasattr(optimizer, "fit") and hasattr(optimizer, "get_params")):
         raise TypeError(
@@ -370,8 +370,6 @@ def discover(
     -------
     Discovery
     """
-    from .mme import MME  # noqa: PLC0415 - mme imports nothing from here
-
     # ---- validate everything before any long computation ----
     if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
         raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
