@@ -16,10 +16,10 @@ selection in output-error space:
 2. swap: each term is taken out and the look-alike library functions of
    its equation (most correlated along the current simulation) are put in
    instead (the regression cannot tell ``x2`` from ``x2 |x2|``; the
-   measurements can). Likewise a pair of terms of one equation may be merged into the single
-   library function most like their fitted combination (``x2 |x2|`` and
-   ``x2^3`` together imitate ``x2``). Swaps and merges are pruned backward and
-   kept when they lower the BIC (fit and size together);
+   measurements can). Likewise a pair of terms of one equation may be merged
+   into the single library function most like their fitted combination
+   (``x2 |x2|`` and ``x2^3`` together imitate ``x2``). Swaps and merges are
+   pruned backward and kept when they lower the BIC (fit and size together);
 3. backward: terms whose refitted coefficient is not significant (Wald test)
    leave, weakest first;
 4. forward over the whole library: a linearised score test (output
