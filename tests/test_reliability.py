@@ -35,6 +35,7 @@ import pysindy as ps
 import pytest
 from sklearn.exceptions import ConvergenceWarning
 
+import pysindy_mme.discovery as discovery_module
 import pysindy_mme.mme as mme_module
 import pysindy_mme.stepwise as stepwise_module
 from pysindy_mme import (
@@ -1267,7 +1268,7 @@ def test_discover_reports_mme_non_convergence(monkeypatch):
             self.max_iter = 1
             return super().fit(y, t, u)
 
-    monkeypatch.setattr(mme_module, "MME", OneIterationMME)
+    monkeypatch.setattr(discovery_module, "MME", OneIterationMME)
     system = lotka_volterra()
     data = system.measure(0)
     with pytest.warns(DiscoveryWarning, match="MME did not converge"):
