@@ -31,7 +31,7 @@ from ._model import as_model_function, rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
 from ._report import format_discovery
 from .extended import ExtendedModel
-from .mme import MME
+from .mme import MME, noise_covariance
 from .stepwise import FloatingFStepwise
 
 __all__ = ["discover", "Discovery", "ExtendedModel", "Gain", "TermEstimate"]
@@ -259,28 +259,6 @@ def _check_optimizer(optimizer):
     return optimizer
 
 
-def _noise_cov(noise_variance, m):
-    """Scalar, per channel, or full matrix -> (m, m) covariance."""
-    arr = np.asarray(noise_variance, dtype=float)
-    if arr.ndim == 0:
-        val.check_positive_number(float(arr), "noise_variance")
-        return np.eye(m) * float(arr)
-    if arr.ndim == 1:
-        if arr.size != m:
-            raise ValueError(
-                f"noise_variance has {arr.size} entries but there are {m} measured "
-                "channels"
-            )
-        if np.any(~np.isfinite(arr)) or np.any(arr <= 0):
-            raise ValueError(f"noise_variance must be positive, got {arr.tolist()}")
-        return np.diag(arr)
-    if arr.shape != (m, m):
-        raise ValueError(f"noise_variance must be ({m}, {m}), got {arr.shape}")
-    if not np.allclose(arr, arr.T) or np.any(np.linalg.eigvalsh(arr) <= 0):
-        raise ValueError("noise_variance must be symmetric positive definite")
-    return arr
-
-
 def _check_validation(validation, m, n_inputs):
     if validation is None:
         return None
@@ -433,7 +411,7 @@ def discover(
             )
         noise_cov = None
     else:
-        noise_cov = _noise_cov(noise_variance, m)
+        noise_cov = noise_covariance(noise_variance, m)
     validation = _check_validation(validation, m, n_inputs)
     if assumed_equations is not None and len(assumed_equations) != n_states:
         raise ValueError(
@@ -465,7 +443,7 @@ def discover(
     )
     mme(y, t)
     if noise_cov is None:
-        noise_cov = _noise_cov(np.asarray(mme.noise_variance_), m)
+        noise_cov = np.asarray(mme.noise_variance_)  # (m, m), estimated
     if not mme.converged_:
         notes.append("MME did not converge; the state estimate may be poor")
     x_hat = np.asarray(mme.smoothed_x_)

@@ -30,7 +30,7 @@ from ._validation import (
 )
 from .smoother import DivergenceError, MMESmoother, unobservable_states
 
-__all__ = ["MME", "difference_noise_variance"]
+__all__ = ["MME", "difference_noise_variance", "noise_covariance"]
 
 # W is searched in [W_ref * 10**-_W_DECADES, W_ref * 10**_W_DECADES].
 _W_DECADES = 12.0
@@ -65,6 +65,41 @@ def difference_noise_variance(y, order: int = 4) -> np.ndarray:
             )
         out[j] = np.mean(np.diff(col, n=order) ** 2) / comb(2 * order, order)
     return out
+
+
+def noise_covariance(noise_variance, m: int) -> np.ndarray:
+    """The (m, m) noise covariance R from a variance, one per channel, or R.
+
+    Raises ``ValueError`` naming ``noise_variance`` when it is not finite and
+    positive (definite), or does not match the ``m`` measured channels.
+    """
+    arr = as_float_array(noise_variance, "noise_variance", ndim=(0, 1, 2))
+    if arr.ndim == 0:
+        check_positive_number(float(arr), "noise_variance")
+        return float(arr) * np.eye(m)
+    if arr.ndim == 1:
+        if arr.size != m:
+            raise ValueError(
+                f"noise_variance has {arr.size} entries but there are {m} "
+                "measured channels"
+            )
+        if np.any(arr <= 0):
+            raise ValueError(f"noise_variance must be positive, got {arr.tolist()}")
+        return np.diag(arr)
+    if arr.shape != (m, m):
+        raise ValueError(
+            f"noise_variance must be ({m}, {m}) for {m} measured channels, "
+            f"got shape {arr.shape}"
+        )
+    if not np.allclose(arr, arr.T):
+        raise ValueError("noise_variance (covariance R) must be symmetric")
+    try:
+        np.linalg.cholesky(arr)
+    except np.linalg.LinAlgError:
+        raise ValueError(
+            "noise_variance (covariance R) must be positive definite"
+        ) from None
+    return arr
 
 
 class MME(BaseDifferentiation):
@@ -481,33 +516,7 @@ class MME(BaseDifferentiation):
                 stacklevel=4,
             )
             return np.diag(var)
-        arr = as_float_array(nv, "noise_variance", ndim=(0, 1, 2))
-        if arr.ndim == 0:
-            check_positive_number(float(arr), "noise_variance")
-            return float(arr) * np.eye(m)
-        if arr.ndim == 1:
-            if arr.size != m:
-                raise ValueError(
-                    f"noise_variance has {arr.size} entries but there are {m} "
-                    "measured channels"
-                )
-            if np.any(arr <= 0):
-                raise ValueError(f"noise_variance must be positive, got {arr.tolist()}")
-            return np.diag(arr)
-        if arr.shape != (m, m):
-            raise ValueError(
-                f"noise_variance must be ({m}, {m}) for {m} measured channels, "
-                f"got shape {arr.shape}"
-            )
-        if not np.allclose(arr, arr.T):
-            raise ValueError("noise_variance (covariance R) must be symmetric")
-        try:
-            np.linalg.cholesky(arr)
-        except np.linalg.LinAlgError:
-            raise ValueError(
-                "noise_variance (covariance R) must be positive definite"
-            ) from None
-        return arr
+        return noise_covariance(nv, m)
 
     def _W_spec(self, q):
         W = self.W

@@ -134,18 +134,7 @@ def test_null_assumed_model_right_reports_no_correction():
     system = van_der_pol()
     false_discoveries = 0
     for seed in SEEDS:
-        data = system.measure(seed)
-        res = discover(
-            data.y,
-            data.t,
-            assumed_model=system.true_model,
-            n_states=2,
-            measured=[0],
-            noise_variance=0.01,
-            error_states=[1],
-            feature_library=ps.PolynomialLibrary(degree=3),
-            feature_names=["x1", "x2"],
-        )
+        _, res = run(system, seed, assumed_model=system.true_model)
         false_discoveries += res.found_correction
         if not res.found_correction:
             assert "no significant correction" in str(res)
@@ -155,20 +144,8 @@ def test_null_assumed_model_right_reports_no_correction():
 
 def test_validation_record_measures_gain_out_of_sample():
     system = duffing()
-    data = system.measure(3)
     val = system.measure(4, x0=(-1.0, 1.0))
-    res = discover(
-        data.y,
-        data.t,
-        assumed_model=system.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["x1", "x2"],
-        validation=(val.y, val.t),
-    )
+    _, res = run(system, 3, validation=(val.y, val.t))
     g = res.gain
     assert g.validation_ratio[0] > 3
     assert g.validation_rmse_extended[0] < 1.2 * g.noise_floor[0]

@@ -1184,6 +1184,7 @@ def test_mme_not_converging_warns_and_flags():
     with pytest.warns(ConvergenceWarning, match="Gauss-Newton did not converge"):
         mme.fit(data.y[:, [0]], data.t)
     assert mme.converged_ is False
+    assert mme.n_iter_ == 1
     assert np.all(np.isfinite(mme.smoothed_x_))  # the last iterate, flagged
 
 
