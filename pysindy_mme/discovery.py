@@ -300,6 +300,7 @@ def discover(
     u=None,
     validation=None,
     W="auto",
+    error_model="white",
     alpha=0.01,
     refit=True,
     assumed_equations=None,
@@ -336,6 +337,8 @@ def discover(
         Another record, used only to measure the gain.
     W : "auto", "ml" or positive number
         MME weight (see :class:`MME`).
+    error_model : {"white", "random_walk"}
+        MME's prior on the model error (see :class:`MME`).
     alpha : float
         Significance level of the tests (consistency, term pruning, F-test of
         the extended model against the assumed one).
@@ -439,6 +442,7 @@ def discover(
         noise_variance="auto" if noise_cov is None else noise_cov,
         error_states=error_idx.tolist(),
         W=W,
+        error_model=error_model,
         u=u,
     )
     mme(y, t)

@@ -96,7 +96,11 @@ def _scaled_model(model: ModelFunction, unit: float) -> ModelFunction:
     def f(z, t, u):
         return model(unit * z, t, u) / unit
 
-    return ModelFunction(f, model.n_states, name=model.name)
+    scaled = ModelFunction(f, model.n_states, name=model.name)
+    if type(model).jacobian is not ModelFunction.jacobian:
+        # A model with its own Jacobian keeps it: d f_s / dz = J(s z).
+        scaled.jacobian = lambda z, t, u=None, f0=None: model.jacobian(unit * z, t, u)
+    return scaled
 
 
 @dataclass
@@ -256,6 +260,8 @@ class MMESmoother:
         self._Eb = np.zeros((self.n, self.n + self.q))
         self._Eb[self.es, self.n + np.arange(self.q)] = 1.0
         self.x_init = None if x_init is None else np.asarray(x_init, dtype=float)
+        # Names of the states in diagnostics (default x0, x1, ...).
+        self.state_labels = None
         self._scale = None
         self._HRQ = None
         self._band = None
@@ -812,7 +818,8 @@ class MMESmoother:
         for v in null:
             v = v / np.max(np.abs(v))
             v = v * np.sign(v[np.flatnonzero(np.abs(v) > 1e-6)[0]])  # first is +
-            terms = [f"{c:+.3g} x{j}" for j, c in enumerate(v) if abs(c) > 1e-6]
+            labels = self.state_labels or [f"x{j}" for j in range(n)]
+            terms = [f"{c:+.3g} {labels[j]}" for j, c in enumerate(v) if abs(c) > 1e-6]
             parts.append(" ".join(terms))
         return parts
 

@@ -38,17 +38,24 @@ def _vdp_mme(**kw):
 
 # ------------------------------------------------------- the paper's example
 
+STUDY_MODES = [
+    ("white", "auto"),
+    ("white", "ml"),
+    ("random_walk", "auto"),
+    ("random_walk", "ml"),
+]
+
 
 @pytest.fixture(scope="module")
 def vdp_study():
     """20 noise seeds of the paper's case; per seed: errors and W."""
     system = van_der_pol()
     out = {}
-    for mode in ("auto", "ml"):
+    for error_model, mode in STUDY_MODES:
         rows = []
         for seed in SEEDS:
             m = system.measure(seed)
-            mme = _vdp_mme(W=mode).fit(m.y, m.t)
+            mme = _vdp_mme(W=mode, error_model=error_model).fit(m.y, m.t)
             e = mme.smoothed_x_ - m.x
             rows.append(
                 dict(
@@ -60,7 +67,8 @@ def vdp_study():
                     W=mme.W_,
                 )
             )
-        out[mode] = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        key = mode if error_model == "white" else f"{error_model}-{mode}"
+        out[key] = {k: np.array([r[k] for r in rows]) for k in rows[0]}
     return out
 
 
@@ -93,19 +101,45 @@ def test_van_der_pol_maximum_likelihood(vdp_study):
     assert np.ptp(np.log10(ml["W"])) < 0.3
 
 
+def test_van_der_pol_random_walk_error_model(vdp_study):
+    """A smooth prior on d: the unmeasured state within the brief's 0.011.
+
+    Measured medians (20 seeds): random_walk + W='ml' x1 0.00047, x2 0.0079,
+    d 0.219 (white + 'auto': 0.00087, 0.0135, 0.284); covariance ratio 0.94.
+    """
+    white, rw_ml, rw_auto = (
+        vdp_study["auto"],
+        vdp_study["random_walk-ml"],
+        (vdp_study["random_walk-auto"]),
+    )
+    assert rw_ml["converged"].all() and rw_auto["converged"].all()
+    assert np.median(rw_ml["x1"]) <= 0.0010
+    assert np.median(rw_ml["x2"]) <= 0.011
+    assert np.median(rw_ml["d"]) < 0.8 * np.median(white["d"])
+    assert 0.9 < np.median(rw_ml["ratio"]) < 1.0
+    # the covariance constraint holds for either error model
+    assert np.all(np.abs(rw_auto["ratio"] - 1.0) <= 0.05)
+
+
 @pytest.mark.xfail(
     strict=True,
     reason=(
-        "brief's thresholds x2 <= 0.011, d <= 0.19 (median of 20 seeds) are not "
-        "met: W='auto' gives x2 0.0135, d 0.284; W='ml' x2 0.0168, d 1.13; even "
-        "the best W chosen per seed with the truth known gives median d 0.220 "
-        "(the paper's 0.1878 is one realisation; 5 of our 20 seeds are below)"
+        "brief's line 1 asks for x2 <= 0.011, d <= 0.19 and a covariance ratio "
+        "within 5% of 1 together (medians of 20 seeds); no configuration meets "
+        "all three: white+'auto' x2 0.0135, d 0.284 (ratio 1.000); "
+        "random_walk+'ml' x2 0.0079, d 0.219, ratio 0.94. Choosing W per seed "
+        "with the truth known gives d 0.220 (white) and 0.186 (random_walk): "
+        "d <= 0.19 needs a W no data-driven rule here finds"
     ),
 )
 def test_van_der_pol_brief_thresholds_unmeasured_state_and_error(vdp_study):
-    auto = vdp_study["auto"]
-    assert np.median(auto["x2"]) <= 0.011
-    assert np.median(auto["d"]) <= 0.19
+    met = [
+        np.median(r["x2"]) <= 0.011
+        and np.median(r["d"]) <= 0.19
+        and abs(np.median(r["ratio"]) - 1.0) <= 0.05
+        for r in vdp_study.values()
+    ]
+    assert any(met)
 
 
 def test_van_der_pol_through_pysindy():
@@ -359,6 +393,7 @@ def _three_state(x, t):
         (dict(u=np.zeros((7, 1))), {}, ValueError, "u has 7 rows"),
         (dict(u=np.zeros((401, 1))), {}, ValueError, "assumed_model takes no input"),
         (dict(target="x"), {}, ValueError, "target must be"),
+        (dict(error_model="smooth"), {}, ValueError, "error_model must be 'white'"),
         (dict(max_iter=0), {}, ValueError, "max_iter must be a positive"),
         (
             dict(measurement_matrix=[[1.0, 0.0]]),
@@ -433,7 +468,14 @@ def test_bad_input(no_solve, kwargs, fit, exc, match):
     np.testing.assert_array_equal(y, y_before)
 
 
-def test_unobservable_state_found_numerically():
+@pytest.mark.parametrize(
+    "error_model, named",
+    [
+        ("white", r"\[\+1 x0 -1 x1\]"),
+        ("random_walk", r"-1 x1 \S+ d0 \(model error of x0\) \S+ d1 \(model error"),
+    ],
+)
+def test_unobservable_state_found_numerically(error_model, named):
     """Every state is measured, yet not observable: the singular KKT is named.
 
     y sees only x0 + x1 and both states are pure integrators of their model
@@ -453,8 +495,9 @@ def test_unobservable_state_found_numerically():
         noise_variance=0.01,
         error_states=[0, 1],
         W=1.0,
+        error_model=error_model,
     )
-    with pytest.raises(ValueError, match=r"not all observable.*\[\+1 x0 -1 x1\]"):
+    with pytest.raises(ValueError, match=r"not all observable.*" + named):
         mme.fit(y, t)
 
 

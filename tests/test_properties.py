@@ -415,12 +415,17 @@ def _check_mme_result(mme, system, y, t, record):
 
 
 @settings(max_examples=120)
-@given(problem=mme_problems())
-def test_mme_sane_or_documented_error(problem, case_counter):
+@given(
+    problem=mme_problems(),
+    error_model=st.sampled_from(["white", "random_walk"]),
+)
+def test_mme_sane_or_documented_error(problem, error_model, case_counter):
     case_counter["MME.fit"] += 1
     system, t, y, noise_variance = problem
     y_ro, t_ro = _readonly(y), _readonly(t)
-    mme, record = _run_mme(_mme(system, noise_variance), y_ro, t_ro)
+    mme, record = _run_mme(
+        _mme(system, noise_variance, error_model=error_model), y_ro, t_ro
+    )
     np.testing.assert_array_equal(y_ro, y)
     if mme is not None:
         _check_mme_result(mme, system, y, t, record)

@@ -541,6 +541,12 @@ BAD_INPUTS = [
         ValueError,
         r"tol must be finite and > 0",
     ),
+    _bad(
+        "MME: unknown error model",
+        lambda tmp: _mme_fit(error_model="smooth"),
+        ValueError,
+        r"error_model must be 'white' or 'random_walk'",
+    ),
     # ---- discover (issue 4: short record; issue 5: the validation layer)
     _bad(
         "discover: record shorter than the library",
@@ -561,6 +567,12 @@ BAD_INPUTS = [
         lambda tmp: _discover(t=T[:5]),
         ValueError,
         r"t has 5 entries but the data have 401 samples",
+    ),
+    _bad(
+        "discover: unknown error model",
+        lambda tmp: _discover(error_model=None),
+        ValueError,
+        r"error_model must be 'white' or 'random_walk', got None",
     ),
     _bad(
         "discover: t not increasing",

@@ -150,6 +150,61 @@ def test_linear_model_equals_kalman_rts_smoother(case):
         assert np.all(np.delete(mme.d_, B_idx, axis=1) == 0.0)
 
 
+@pytest.mark.parametrize("measurement", ["matrix", "function"])
+def test_random_walk_error_model_equals_augmented_kalman_smoother(measurement):
+    """``error_model="random_walk"``: d is a state with d' = w, W weighs w.
+
+    The reference is the same Kalman + RTS smoother on the augmented linear
+    system ``[x, d]' = [[A, B], [0, 0]] [x, d] + [0, I] w``; irregular steps,
+    missing samples, a nonlinear-looking measurement callable with its
+    Jacobian, and the likelihood included.
+    """
+    system = duffing()
+    rng = np.random.default_rng(11)
+    t = _irregular_times(rng, 250, 0.05)
+    A = np.array([[0.0, 1.0], [-1.0, -0.1]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    R = np.array([[0.01]])
+    W = np.array([[0.7]])
+    y = system.simulate(t)[:, :1] + 0.1 * rng.standard_normal((t.size, 1))
+    y[rng.choice(t.size, 20, replace=False)] = np.nan
+    if measurement == "matrix":
+        kwargs = dict(measured=[0])
+    else:
+        kwargs = dict(
+            measurement_function=lambda x: x[:, :1].copy(),
+            measurement_jacobian=lambda x: np.tile(C, (len(x), 1, 1)),
+        )
+    mme = MME(
+        system.assumed_model,
+        2,
+        noise_variance=0.01,
+        error_states=[1],
+        error_model="random_walk",
+        W=0.7,
+        n_substeps=4,
+        **kwargs,
+    ).fit(y, t)
+    A_aug = np.block([[A, B], [np.zeros((1, 3))]])
+    B_aug = np.array([[0.0], [0.0], [1.0]])
+    C_aug = np.hstack([C, np.zeros((1, 1))])
+    zs, ws, n2ll = kalman_rts(A_aug, B_aug, C_aug, R, W, y, t)
+
+    assert mme.converged_
+    np.testing.assert_allclose(mme.smoothed_x_, zs[:, :2], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(mme.d_[:, 1], zs[:, 2], rtol=0, atol=1e-6)
+    assert np.all(mme.d_[:, 0] == 0.0)
+    np.testing.assert_allclose(
+        mme.d_intervals_[:, 0], 0.5 * (zs[1:, 2] + zs[:-1, 2]), atol=1e-6
+    )
+    assert mme.log_likelihood_ == pytest.approx(-0.5 * n2ll, abs=1e-4)
+    # derivative_ is the base model plus d at the estimate
+    np.testing.assert_allclose(
+        mme.derivative_, zs[:, :2] @ A.T + zs[:, 2:] @ B.T, atol=1e-5
+    )
+
+
 def test_maximum_likelihood_W_maximises_the_kalman_likelihood():
     """W='ml' lands on the maximum of the independent Kalman likelihood."""
     system = duffing()
