@@ -155,7 +155,7 @@ class MME(BaseDifferentiation):
         terms); the right prior for a smooth model error such as a missing
         term of the state, it gives a markedly better ``d`` and a better
         estimate of unmeasured states (the paper's Van der Pol record:
-        ``benchmarks/bench_mme.py``), at about twice the cost per solve for
+        ``benchmarks/bench_mme_accuracy.py``), at about twice the cost per solve for
         two states. Everything else (``W`` tuning, outputs) is the same.
     W : "auto", "ml", float, array-like (q,) or (q, q)
         Weight of the model-error integral (of its rate with
@@ -751,7 +751,7 @@ class MME(BaseDifferentiation):
     def _store(self, smoother, res, R, n, W_out, history, at_bound, n_total, conv):
         N = smoother.N
         x = res.x[:, :n]
-        if smoother.n == n:  # error_model="white": d is held on each interval
+        if not isinstance(smoother.model, _RandomWalkModel):  # d held per interval
             es = smoother.es
             d_int = res.d
             d_grid = np.empty((N, smoother.q))
@@ -810,9 +810,8 @@ class _RandomWalkModel(ModelFunction):
 
     def _rhs(self, z, t, u):
         n = self.n_base
-        out = np.zeros_like(z)
+        out = np.zeros_like(z)  # d' = 0: the rate is the model error w
         out[:, :n] = self.base(z[:, :n], t, u)
-        out[:, n + np.arange(self.es.size)] = 0.0
         out[:, self.es] += z[:, n:]
         return out
 
