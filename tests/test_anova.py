@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
+from exact_reference import exact_lstsq
 from scipy import stats
 
 from pysindy_mme.anova import (
@@ -157,26 +157,6 @@ def test_f_critical_matches_printed_tables():
     assert np.isnan(f_pvalue(3.0, 1, 0))
 
 
-def _exact_lstsq(A, y):
-    F = [[Fraction(v) for v in row] for row in A]
-    Y = [Fraction(v) for v in y]
-    k = A.shape[1]
-    M = [
-        [sum(r[p] * r[q] for r in F) for q in range(k)]
-        + [sum(r[p] * yy for r, yy in zip(F, Y, strict=True))]
-        for p in range(k)
-    ]
-    for col in range(k):
-        for row in range(col + 1, k):
-            f = M[row][col] / M[col][col]
-            M[row] = [a - f * b for a, b in zip(M[row], M[col], strict=True)]
-    sol = [Fraction(0)] * k
-    for row in reversed(range(k)):
-        acc = M[row][k] - sum(M[row][j] * sol[j] for j in range(row + 1, k))
-        sol[row] = acc / M[row][row]
-    return np.array([float(s) for s in sol])
-
-
 def test_refined_lstsq_is_accurate_when_plain_solvers_are_not():
     rng = np.random.default_rng(4)
     n = 150
@@ -184,7 +164,7 @@ def test_refined_lstsq_is_accurate_when_plain_solvers_are_not():
     A = np.column_stack([np.ones(n), a, a + 1e-9 * z, c])
     assert np.linalg.cond(A) > 1e9
     y = A @ np.array([0.5, 2.0, -1.5, 0.75])
-    exact = _exact_lstsq(A, y)
+    exact = exact_lstsq(A, y)
 
     def rel(x):
         return np.linalg.norm(x - exact) / np.linalg.norm(exact)

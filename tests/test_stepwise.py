@@ -10,11 +10,11 @@
 from __future__ import annotations
 
 import warnings
-from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
+from exact_reference import exact_lstsq
 from scipy import stats
 from sklearn.exceptions import ConvergenceWarning
 
@@ -420,27 +420,6 @@ def test_collinear_combination_never_fully_selected():
     assert np.linalg.matrix_rank(X[:, chosen]) == chosen.size
 
 
-def _exact_lstsq(A, y):
-    """Least-squares solution of float data in exact rational arithmetic."""
-    F = [[Fraction(v) for v in row] for row in A]
-    Y = [Fraction(v) for v in y]
-    k = A.shape[1]
-    M = [
-        [sum(r[p] * r[q] for r in F) for q in range(k)]
-        + [sum(r[p] * yy for r, yy in zip(F, Y, strict=True))]
-        for p in range(k)
-    ]
-    for col in range(k):
-        for row in range(col + 1, k):
-            f = M[row][col] / M[col][col]
-            M[row] = [a - f * b for a, b in zip(M[row], M[col], strict=True)]
-    sol = [Fraction(0)] * k
-    for row in reversed(range(k)):
-        acc = M[row][k] - sum(M[row][j] * sol[j] for j in range(row + 1, k))
-        sol[row] = acc / M[row][row]
-    return np.array([float(s) for s in sol])
-
-
 def test_ill_conditioned_coefficients_match_exact_solution():
     rng = np.random.default_rng(0)
     n = 200
@@ -452,7 +431,7 @@ def test_ill_conditioned_coefficients_match_exact_solution():
     y = 0.5 + A[:, 1:] @ np.array([2.0, -1.5, 0.75])
     opt = FloatingFStepwise(tolerance=1e-12).fit(X, y)
     assert set(np.flatnonzero(opt.coef_[0])) == {0, 1, 2}
-    exact = _exact_lstsq(A, y)
+    exact = exact_lstsq(A, y)
     got = np.r_[opt.intercept_[0], opt.coef_[0, :3]]
     assert np.linalg.norm(got - exact) / np.linalg.norm(exact) < 1e-8
     # np.linalg.lstsq on the same support is less accurate here (~1e-7).
