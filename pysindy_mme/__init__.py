@@ -7,9 +7,15 @@ a library of functions of the state (:class:`FloatingFStepwise`,
 """
 
 from .discovery import Discovery, ExtendedModel, discover
+from .exceptions import (
+    DiscoveryWarning,
+    DivergenceError,
+    ExcludedFeaturesWarning,
+    StepwiseCycleWarning,
+)
 from .libraries import PowerLibrary
 from .mme import MME
-from .stepwise import ExcludedFeaturesWarning, FloatingFStepwise, StepwiseCycleWarning
+from .stepwise import FloatingFStepwise
 
 __all__ = [
     "MME",
@@ -18,6 +24,8 @@ __all__ = [
     "FloatingFStepwise",
     "PowerLibrary",
     "discover",
+    "DiscoveryWarning",
+    "DivergenceError",
     "ExcludedFeaturesWarning",
     "StepwiseCycleWarning",
 ]

@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from ._model import rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
+from .core.model import rowwise_jacobian
 
 __all__ = ["confirm_terms", "Confirmation", "make_problem_factory", "add_scores"]
 

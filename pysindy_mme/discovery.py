@@ -24,21 +24,18 @@ import numpy as np
 from scipy import stats
 from sklearn.base import clone
 
-from . import _validation as val
 from ._confirm import Confirmation, confirm_terms, make_problem_factory
-from ._features import SelectedFeatures
-from ._model import as_model_function, rowwise_jacobian
 from ._output_error import OutputErrorProblem, OutputErrorResult
 from ._report import format_discovery
+from .core import validation as val
+from .core.features import SelectedFeatures
+from .core.model import as_model_function, rowwise_jacobian
+from .exceptions import DiscoveryWarning
 from .extended import ExtendedModel
 from .mme import MME, noise_covariance
 from .stepwise import FloatingFStepwise
 
 __all__ = ["discover", "Discovery", "ExtendedModel", "Gain", "TermEstimate"]
-
-
-class DiscoveryWarning(UserWarning):
-    """Something in the study did not go as it should; the result says what."""
 
 
 @dataclass(frozen=True)

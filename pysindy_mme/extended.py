@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._features import SelectedFeatures
-from ._model import as_model_function, simulate_model
+from .core.features import SelectedFeatures
+from .core.model import as_model_function, simulate_model
 
 __all__ = ["ExtendedModel"]
 

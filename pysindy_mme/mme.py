@@ -20,8 +20,8 @@ from pysindy.differentiation import BaseDifferentiation
 from scipy.optimize import brentq, minimize_scalar
 from sklearn.exceptions import ConvergenceWarning
 
-from ._model import ModelFunction, as_model_function
-from ._validation import (
+from .core.model import ModelFunction, as_model_function
+from .core.validation import (
     as_float_array,
     check_finite,
     check_indices,

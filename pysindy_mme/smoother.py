@@ -56,7 +56,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lapack
 
-from ._model import ModelFunction
+from .core.model import ModelFunction
+from .exceptions import DivergenceError
 
 # A KKT pivot below this fraction of the largest one triggers the
 # observability check (see MMESmoother._solve_kkt).
@@ -71,10 +72,6 @@ __all__ = [
     "SmootherResult",
     "unobservable_states",
 ]
-
-
-class DivergenceError(FloatingPointError):
-    """The assumed model or the iteration produced non-finite / exploding values."""
 
 
 def internal_unit(R) -> float:

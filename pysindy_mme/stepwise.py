@@ -50,8 +50,9 @@ from scipy.linalg.lapack import dtrtri
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
-from ._validation import check_positive_number, check_probability
 from .anova import AnovaTable, f_critical, fit_anova, lstsq_refined
+from .core.validation import check_positive_number, check_probability
+from .exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 
 __all__ = [
     "FloatingFStepwise",
@@ -82,14 +83,6 @@ def _pow2_scale(max_abs):
     ok = np.isfinite(max_abs) & (max_abs > 0)
     _, exponent = np.frexp(np.where(ok, max_abs, 1.0))
     return np.where(ok, np.ldexp(1.0, -exponent), 1.0)
-
-
-class StepwiseCycleWarning(UserWarning):
-    """The selection returned to a model it had already visited and stopped there."""
-
-
-class ExcludedFeaturesWarning(UserWarning):
-    """Some library columns can never be selected (non-finite, constant, ...)."""
 
 
 @dataclass(frozen=True)

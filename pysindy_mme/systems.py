@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._model import simulate_model
+from .core.model import simulate_model
 
 __all__ = [
     "HiddenEffectSystem",

@@ -5,8 +5,8 @@ import pysindy as ps
 import pytest
 
 from pysindy_mme import ExtendedModel
-from pysindy_mme._features import SelectedFeatures
 from pysindy_mme._output_error import OutputErrorProblem, batch_simulate
+from pysindy_mme.core.features import SelectedFeatures
 from pysindy_mme.systems import forced_oscillator, van_der_pol
 
 

@@ -24,7 +24,7 @@ from derivative import Kalman
 from scipy.linalg import expm
 
 from pysindy_mme import MME
-from pysindy_mme._model import ModelFunction
+from pysindy_mme.core.model import ModelFunction
 from pysindy_mme.smoother import MMESmoother, internal_unit, unobservable_states
 from pysindy_mme.systems import duffing, van_der_pol
 
