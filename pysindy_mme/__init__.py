@@ -6,6 +6,7 @@ a library of functions of the state (:class:`FloatingFStepwise`,
 (:func:`discover`).
 """
 
+from .differentiation import MME
 from .discovery import Discovery, ExtendedModel, discover
 from .exceptions import (
     DiscoveryWarning,
@@ -14,7 +15,6 @@ from .exceptions import (
     StepwiseCycleWarning,
 )
 from .libraries import PowerLibrary
-from .mme import MME
 from .stepwise import FloatingFStepwise
 
 __all__ = [

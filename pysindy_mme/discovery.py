@@ -30,9 +30,9 @@ from ._report import format_discovery
 from .core import validation as val
 from .core.features import SelectedFeatures
 from .core.model import as_model_function, rowwise_jacobian
+from .differentiation import MME, noise_covariance
 from .exceptions import DiscoveryWarning
 from .extended import ExtendedModel
-from .mme import MME, noise_covariance
 from .stepwise import FloatingFStepwise
 
 __all__ = ["discover", "Discovery", "ExtendedModel", "Gain", "TermEstimate"]

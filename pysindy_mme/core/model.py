@@ -64,6 +64,11 @@ class ModelFunction:
                 f"pysindy SINDy model or an ExtendedModel; got {type(func).__name__}"
             )
 
+    @property
+    def takes_input(self) -> bool:
+        """Whether the model accepts an input ``u`` (a third argument)."""
+        return self._kind != "callable" or self._takes_u
+
     def __call__(self, x, t, u=None) -> np.ndarray:
         x = np.atleast_2d(np.asarray(x, dtype=float))
         t = np.broadcast_to(np.asarray(t, dtype=float), (x.shape[0],))
@@ -235,3 +240,77 @@ def simulate_model(
     out = np.full((t.size, x0.size), np.nan)
     out[: sol.y.shape[1]] = sol.y.T
     return out
+
+
+class ParametricModel:
+    """``x' = f(x, t, u; p) + sum_j c_j e_{s_j} phi_j(x, u)``, ``theta = [p, c]``.
+
+    The model an estimator fits parameters of: the assumed model with its own
+    (physical) parameters ``p`` and correction coefficients ``c``, each on one
+    library function ``phi_j`` in the equation of state ``s_j`` (a *slot*).
+
+    Parameters
+    ----------
+    base : callable ``(x (K, n), t (K,), u (K, m) or None, p (n_physical,)) -> (K, n)``
+        The assumed model, vectorised over rows, unchecked (validate first).
+    n_states : int
+    n_physical : int
+        Number of parameters of ``base`` (0: ``p`` is an empty array).
+    features : callable ``(z (K, n + m), columns) -> (K, len(columns))``
+        Library columns at ``z`` = states then inputs.
+    slots : sequence of (state, column)
+    """
+
+    def __init__(self, base, n_states, n_physical=0, features=None, slots=()):
+        self.base = base
+        self.n_states = int(n_states)
+        self.n_physical = int(n_physical)
+        self.features = features
+        self.slots = [(int(i), int(c)) for i, c in slots]
+        self.used = sorted({c for _, c in self.slots})
+        position = {c: k for k, c in enumerate(self.used)}
+        self._rows = np.array([i for i, _ in self.slots], dtype=int)
+        self._cols = np.array([position[c] for _, c in self.slots], dtype=int)
+        self.n_params = self.n_physical + len(self.slots)
+
+    def _z(self, x, u):
+        return (
+            x
+            if u is None
+            else np.hstack([x, np.broadcast_to(u, (len(x), u.shape[-1]))])
+        )
+
+    def __call__(self, x, t, u, theta) -> np.ndarray:
+        p = theta[: self.n_physical]
+        out = np.array(self.base(x, t, u, p), dtype=float)
+        if self.slots:
+            phi = self.features(self._z(x, u), self.used)
+            coef = np.zeros((len(self.used), self.n_states))
+            np.add.at(coef, (self._cols, self._rows), theta[self.n_physical :])
+            out += phi @ coef
+        return out
+
+    def jacobian(self, x, t, u, theta) -> np.ndarray:
+        """``df/dx`` (central differences, all rows at once): ``(K, n, n)``."""
+        return rowwise_jacobian(lambda z: self(z, t, u, theta), x)
+
+    def param_jacobian(self, x, t, u, theta) -> np.ndarray:
+        """``df/dtheta``: ``(K, n, n_params)``; exact for the coefficients."""
+        K, n = x.shape
+        out = np.zeros((K, n, self.n_params))
+        n_p = self.n_physical
+        if n_p:
+            p = np.asarray(theta[:n_p], dtype=float)
+            step = 1e-6 * np.maximum(np.abs(p), 1e-6 * max(np.max(np.abs(p)), 1.0))
+            for j in range(n_p):
+                hi, lo = p.copy(), p.copy()
+                hi[j] += step[j]
+                lo[j] -= step[j]
+                out[:, :, j] = (
+                    np.asarray(self.base(x, t, u, hi))
+                    - np.asarray(self.base(x, t, u, lo))
+                ) / (2.0 * step[j])
+        if self.slots:
+            phi = self.features(self._z(x, u), self.used)
+            out[:, self._rows, n_p + np.arange(len(self.slots))] = phi[:, self._cols]
+        return out

@@ -1,0 +1,286 @@
+"""The one integrator of the package: classical RK4 on the sample grid.
+
+Everything that integrates a model goes through here, so that the estimator,
+the output-error fit, the gain and the simulations all see the same discrete
+dynamics:
+
+* :class:`InputSignal` - known inputs between samples: zero-order hold
+  (``hold="zoh"``: ``u`` constant on ``[t_k, t_{k+1})``, the way a digital
+  controller or a signal generator applies it) or linear interpolation
+  (``hold="linear"``, the default), or a callable ``u(t)``.
+* :func:`rk4_flow` - the flow ``Phi_k`` over every sample interval at once
+  (vectorised over intervals, a Python loop over the RK4 sub-steps only), and
+  optionally its exact derivatives ``dPhi_k/dx`` and ``dPhi_k/dp`` from the
+  variational equations of the discrete map (the same stages), as direct
+  transcription and Gauss-Newton need them.
+* :func:`simulate` - free runs: a batch of trajectories integrated forward in
+  time (vectorised over the batch). This is the one place with a Python loop
+  per sample; it is used only where a simulation must be sequential
+  (validation from a leading window, :meth:`ExtendedModel.simulate`-like
+  checks), never inside a fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["InputSignal", "FlowResult", "rk4_flow", "simulate", "SimulationResult"]
+
+HOLDS = ("linear", "zoh")
+
+
+class InputSignal:
+    """Known inputs ``u(t)``: samples on the time grid, or a callable.
+
+    Parameters
+    ----------
+    u : None, array-like (N,) or (N, m), or callable ``u(s) -> (len(s), m)``
+    t : ndarray (N,)
+        Sample times of the array ``u``.
+    hold : {"linear", "zoh"}
+        Between samples: linear interpolation, or zero-order hold (``u_k`` on
+        ``[t_k, t_{k+1})``). Ignored for a callable.
+    """
+
+    def __init__(self, u, t, hold: str = "linear"):
+        if hold not in HOLDS:
+            raise ValueError(f"input_hold must be 'linear' or 'zoh', got {hold!r}")
+        self.t = np.asarray(t, dtype=float)
+        self.hold = hold
+        self._cache = {}
+        if u is None or callable(u):
+            self.u = u
+        else:
+            arr = np.asarray(u, dtype=float)
+            self.u = arr[:, None] if arr.ndim == 1 else arr
+
+    @property
+    def is_none(self) -> bool:
+        return self.u is None
+
+    def grid(self):
+        """Inputs at the sample times, ``(N, m)``, or None."""
+        if self.u is None:
+            return None
+        if callable(self.u):
+            return np.asarray(self.u(self.t), dtype=float).reshape(self.t.size, -1)
+        return self.u
+
+    def on_intervals(self, frac: float, sl=slice(None)):
+        """Inputs at ``t_k + frac * h_k`` for the intervals ``sl`` (cached).
+
+        With ``hold="zoh"`` every point of interval k, its right end
+        included, takes ``u_k``: the interval is integrated with the value
+        that was held on it.
+        """
+        if self.u is None:
+            return None
+        key = round(float(frac), 12)
+        if key not in self._cache:
+            if callable(self.u):
+                s = self.t[:-1] + frac * np.diff(self.t)
+                val = np.asarray(self.u(s), dtype=float).reshape(s.size, -1)
+            elif self.hold == "zoh":
+                val = self.u[:-1]
+            else:
+                val = (1.0 - frac) * self.u[:-1] + frac * self.u[1:]
+            self._cache[key] = val
+        return self._cache[key][sl]
+
+    def at(self, s):
+        """Inputs at arbitrary times ``s`` (1-D), ``(len(s), m)``, or None."""
+        if self.u is None:
+            return None
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if callable(self.u):
+            return np.asarray(self.u(s), dtype=float).reshape(s.size, -1)
+        if self.hold == "zoh":
+            k = np.searchsorted(self.t, s, side="right") - 1
+            return self.u[np.clip(k, 0, self.t.size - 1)]
+        return np.column_stack(
+            [np.interp(s, self.t, self.u[:, j]) for j in range(self.u.shape[1])]
+        )
+
+    def subset(self, start: int, stop: int) -> InputSignal:
+        """The same signal on samples ``start:stop``."""
+        u = self.u if (self.u is None or callable(self.u)) else self.u[start:stop]
+        return InputSignal(u, self.t[start:stop], self.hold)
+
+
+@dataclass
+class FlowResult:
+    """``Phi_k`` for every interval and, if asked, its derivatives.
+
+    ``D[k] = dPhi_k / d[x_k, p]``, shape ``(K, n, n + p)``.
+    """
+
+    phi: np.ndarray
+    D: np.ndarray | None = None
+
+    def A(self, n: int):
+        return None if self.D is None else self.D[:, :, :n]
+
+    def B(self, n: int):
+        return None if self.D is None else self.D[:, :, n:]
+
+
+def rk4_flow(
+    rhs,
+    x,
+    t0,
+    h,
+    inputs,
+    substeps: int = 1,
+    jac_x=None,
+    jac_p=None,
+    n_params: int = 0,
+):
+    """Classical RK4 over ``K`` independent intervals at once.
+
+    Parameters
+    ----------
+    rhs : callable ``(X (K, n), s (K,), u (K, m) or None) -> (K, n)``
+    x : ndarray (K, n)
+        State at the start of each interval.
+    t0, h : ndarray (K,)
+        Start and length of each interval.
+    inputs : callable ``frac -> (K, m) or None``
+        Inputs at ``t0 + frac * h`` (see :meth:`InputSignal.on_intervals`).
+    substeps : int
+        RK4 steps per interval.
+    jac_x : callable ``(X, s, u) -> (K, n, n)``, optional
+        ``df/dx``; with it the derivatives ``D`` are returned.
+    jac_p : callable ``(X, s, u) -> (K, n, p)`` or ``(n, p)``, optional
+        ``df/dp`` for ``n_params`` parameters held constant over the interval.
+
+    Returns
+    -------
+    FlowResult
+        The derivatives are those of the discrete map itself (the RK4
+        stages differentiated), so Gauss-Newton sees the exact Jacobian of
+        what it solves.
+    """
+    X = np.array(x, dtype=float)
+    K, n = X.shape
+    p = int(n_params)
+    hs = (np.asarray(h, dtype=float) / substeps)[:, None]
+    hs3 = hs[:, :, None]
+    D = None
+    if jac_x is not None:
+        D = np.zeros((K, n, n + p))
+        D[:, :, :n] = np.eye(n)
+
+    def derivative(Xs, s, us, Dpre):
+        dk = jac_x(Xs, s, us) @ Dpre
+        if p:
+            dk[:, :, n:] += jac_p(Xs, s, us)
+        return dk
+
+    t0 = np.asarray(t0, dtype=float)
+    for j in range(substeps):
+        c0 = j / substeps
+        tj = t0 + c0 * np.asarray(h)
+        half = tj + 0.5 * hs[:, 0]
+        end = tj + hs[:, 0]
+        u0 = inputs(c0)
+        uh = inputs((j + 0.5) / substeps)
+        u1 = inputs((j + 1.0) / substeps)
+        k1 = rhs(X, tj, u0)
+        X2 = X + 0.5 * hs * k1
+        k2 = rhs(X2, half, uh)
+        X3 = X + 0.5 * hs * k2
+        k3 = rhs(X3, half, uh)
+        X4 = X + hs * k3
+        k4 = rhs(X4, end, u1)
+        if D is not None:
+            dk1 = derivative(X, tj, u0, D)
+            dk2 = derivative(X2, half, uh, D + 0.5 * hs3 * dk1)
+            dk3 = derivative(X3, half, uh, D + 0.5 * hs3 * dk2)
+            dk4 = derivative(X4, end, u1, D + hs3 * dk3)
+            D = D + hs3 / 6.0 * (dk1 + 2.0 * dk2 + 2.0 * dk3 + dk4)
+        X = X + hs / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return FlowResult(X, D)
+
+
+@dataclass
+class SimulationResult:
+    """Trajectories of :func:`simulate`.
+
+    Attributes
+    ----------
+    x : ndarray (B, N, n)
+        States at the sample times; NaN from the first sample at which a
+        trajectory left the finite range or the bound.
+    diverged_at : ndarray of int (B,)
+        Index of that first sample (-1 for a trajectory that stayed bounded).
+    """
+
+    x: np.ndarray
+    diverged_at: np.ndarray
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.diverged_at < 0
+
+
+def simulate(
+    rhs,
+    x0,
+    t,
+    inputs: InputSignal | None = None,
+    substeps: int = 1,
+    bound: float | None = None,
+) -> SimulationResult:
+    """Integrate ``B`` trajectories forward in time with RK4 (free runs).
+
+    Parameters
+    ----------
+    rhs : callable ``(X (B, n), s float, u (m,) or None) -> (B, n)``
+    x0 : ndarray (B, n) or (n,)
+    t : ndarray (N,)
+        Output times; each interval takes ``substeps`` RK4 steps.
+    inputs : InputSignal, optional
+    bound : float, optional
+        A trajectory whose largest state magnitude exceeds this is stopped
+        (NaN from there, recorded in ``diverged_at``). Default: ``1e8`` times
+        the largest initial magnitude (at least 1).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    x = np.array(np.atleast_2d(x0), dtype=float)
+    t = np.asarray(t, dtype=float)
+    n_traj = x.shape[0]
+    out = np.full((n_traj, t.size, x.shape[1]), np.nan)
+    out[:, 0] = x
+    if bound is None:
+        bound = 1e8 * max(1.0, float(np.nanmax(np.abs(x)))) if x.size else 1e8
+    diverged = np.where(np.all(np.isfinite(x), axis=1), -1, 0)
+    has_u = inputs is not None and not inputs.is_none
+    with np.errstate(all="ignore"):
+        for k in range(t.size - 1):
+            h = (t[k + 1] - t[k]) / substeps
+            for s in range(substeps):
+                s0 = t[k] + s * h
+                if has_u:
+                    ua, um, ub = (
+                        inputs.on_intervals(f / substeps, k)
+                        for f in (s, s + 0.5, s + 1)
+                    )
+                else:
+                    ua = um = ub = None
+                k1 = rhs(x, s0, ua)
+                k2 = rhs(x + 0.5 * h * k1, s0 + 0.5 * h, um)
+                k3 = rhs(x + 0.5 * h * k2, s0 + 0.5 * h, um)
+                k4 = rhs(x + h * k3, s0 + h, ub)
+                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            bad = ~np.all(np.isfinite(x) & (np.abs(x) < bound), axis=1)
+            new = bad & (diverged < 0)
+            if np.any(new):
+                diverged[new] = k + 1
+                x[bad] = np.nan
+            out[:, k + 1] = x
+    return SimulationResult(out, diverged)

@@ -1,0 +1,193 @@
+"""The banded KKT system of one Gauss-Newton step of direct transcription.
+
+Unknowns per sample ``k``: ``[dx_k (n), lam_k (n)]`` (the last multiplier
+block is a dummy identity so that every block has size ``2 n``); rows::
+
+    x_k:    Q_k dx_k + A_k^T lam_k - lam_{k-1}            = b_x[k]
+    lam_k:  A_k dx_k - S_k lam_k   - dx_{k+1}             = b_lam[k]
+
+``Q_k = H_k^T R_k^-1 H_k``, ``A_k = dPhi_k/dx``, ``S_k = G_k (h_k W)^-1 G_k^T``
+(zero when the dynamics are hard constraints: output error). The matrix is
+symmetric indefinite with bandwidth ``2 n - 1``; LAPACK's banded LU with
+partial pivoting (``dgbtrf``/``dgbtrs``) solves it in ``O(N n^3)`` time and
+``O(N n^2)`` memory.
+
+Global parameters ``theta`` (``p`` of them: correction coefficients,
+physical parameters, measurement offsets) border the band::
+
+    [ K    E ] [ z      ]   [ b ]
+    [ E^T  D ] [ dtheta ] = [ c ]
+
+``E`` holds ``H_k^T R_k^-1 M_k`` in the ``x_k`` rows and ``B_k = dPhi_k /
+dtheta`` in the ``lam_k`` rows; ``D = sum_k M_k^T R_k^-1 M_k``. It is solved
+by the Schur complement ``Sc = D - E^T K^-1 E`` (``p + 1`` banded solves),
+which is also the reduced Hessian of the cost in ``theta`` once the states
+are optimised out: ``s^2 Sc^-1`` is the covariance of ``theta``. ``Sc`` is
+equilibrated (unit diagonal) before it is factorised, so parameters of any
+scale (coefficients from 1e-4 to 1e6 in one model) are handled alike.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import lapack
+
+__all__ = ["BandedKKT", "KKTFactor", "solve_reduced"]
+
+# Intervals assembled per block: bounded temporaries stay in cache.
+CHUNK = 1 << 15
+
+
+@dataclass
+class KKTFactor:
+    """A factorised KKT matrix (see :meth:`BandedKKT.factor`)."""
+
+    lu: np.ndarray
+    piv: np.ndarray
+    n: int
+    N: int
+    logdet: float
+    pivot_ratio: float
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``."""
+        kl = ku = 2 * self.n - 1
+        shape = rhs.shape
+        flat = np.ascontiguousarray(rhs).reshape(self.N * 2 * self.n, -1)
+        sol, info = lapack.dgbtrs(self.lu, kl, ku, flat, self.piv)
+        if info != 0:  # pragma: no cover - a bug, not a user error
+            raise RuntimeError(f"dgbtrs: illegal argument {-info}")
+        return sol.reshape(shape)
+
+
+class BandedKKT:
+    """Assembles and factorises the KKT matrix for ``N`` samples of ``n`` states.
+
+    One band buffer per instance, reused: a fresh ``O(N)`` allocation per
+    iteration costs more in page faults than the factorisation itself. (The
+    LU overwrites it, so a factor must be used before the next call.)
+    """
+
+    def __init__(self, N: int, n: int):
+        self.N, self.n = N, n
+        self._band = None
+
+    def factor(self, Q, A, S) -> KKTFactor:
+        """Assemble from ``Q (N, n, n)``, ``A (N-1, n, n)``, ``S (N-1, n, n)``
+        (or None: hard constraints) and factorise.
+
+        Matrix entry (i, j) lives in ``ab[kl + ku + i - j, j]`` (LAPACK band
+        storage); ``abT`` is its transpose in C order, so ``abT.T`` is the
+        Fortran-ordered array dgbtrf factorises in place without a copy.
+        Raises ``LinAlgError`` if a pivot is exactly zero or not finite.
+        """
+        n, N = self.n, self.N
+        kl = ku = 2 * n - 1
+        ldab = 2 * kl + ku + 1
+        diag = kl + ku
+        if self._band is None:
+            self._band = np.empty((N, 2 * n, ldab))
+        abT = self._band
+        K = N - 1
+        for lo in range(0, N, CHUNK):
+            hi = min(lo + CHUNK, N)
+            blk = abT[lo:hi]
+            blk.fill(0.0)
+            m = min(hi, K) - lo  # rows of this block that have an interval
+            for b in range(n):
+                # Column b of block k: rows x_k (Q_k[:, b]) and lam_k
+                # (A_k[:, b]); column n + b (lam_k's): rows x_k (A_k^T),
+                # lam_k (-S_k), and x_{k+1}'s -1 below.
+                blk[:, b, diag - b : diag - b + n] = Q[lo:hi, :, b]
+                blk[:m, b, diag + n - b : diag + 2 * n - b] = A[lo : lo + m, :, b]
+                blk[:m, n + b, diag - n - b : diag - b] = A[lo : lo + m, b, :]
+                if S is not None:
+                    blk[:m, n + b, diag - b : diag - b + n] = -S[lo : lo + m, :, b]
+                blk[:m, n + b, diag + n] = -1.0
+                blk[1 if lo == 0 else 0 :, b, diag - n] = -1.0
+        abT[-1, n:, :] = 0.0
+        abT[-1, np.arange(n, 2 * n), diag] = 1.0  # dummy multiplier, last block
+        ab = abT.reshape(N * 2 * n, ldab).T
+        lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+        if info < 0:  # pragma: no cover - a bug, not a user error
+            raise RuntimeError(f"dgbtrf: illegal argument {-info}")
+        udiag = np.abs(lu[diag])
+        umax = float(np.max(udiag))
+        if info > 0 or not (np.isfinite(umax) and umax > 0):
+            raise np.linalg.LinAlgError("singular KKT system")
+        logdet = float(np.sum(np.log(udiag)))
+        return KKTFactor(lu, piv, n, N, logdet, float(np.min(udiag)) / umax)
+
+
+@dataclass
+class ReducedSolution:
+    """Solution of the bordered system.
+
+    Attributes
+    ----------
+    z : ndarray (N, 2n[, k])
+    dtheta : ndarray (p[, k])
+    Sc : ndarray (p, p)
+        Reduced Hessian ``D - E^T K^-1 E``.
+    rank_deficient : bool
+        ``Sc`` is singular to working precision (a parameter the data do not
+        determine); the step then uses the pseudo-inverse.
+    """
+
+    z: np.ndarray
+    dtheta: np.ndarray
+    Sc: np.ndarray
+    rank_deficient: bool
+
+
+def equilibrated_inverse(Sc: np.ndarray, rcond: float = 1e-12):
+    """``Sc^-1`` via unit-diagonal scaling and a symmetric eigendecomposition.
+
+    Returns ``(inverse, rank_deficient)``. Directions with eigenvalues below
+    ``rcond`` times the largest (after scaling) are dropped (pseudo-inverse).
+    """
+    p = Sc.shape[0]
+    if p == 0:
+        return np.zeros((0, 0)), False
+    Sc = 0.5 * (Sc + Sc.T)
+    diag = np.abs(np.diag(Sc))
+    good = np.isfinite(diag) & (diag > 0)
+    scale = np.where(good, 1.0 / np.sqrt(np.where(good, diag, 1.0)), 0.0)
+    scaled = Sc * scale[:, None] * scale[None, :]
+    if not np.all(np.isfinite(scaled)):
+        return np.full((p, p), np.nan), True
+    w, V = np.linalg.eigh(scaled)
+    top = max(float(np.max(w)), 0.0)
+    keep = w > rcond * top if top > 0 else np.zeros(p, bool)
+    inv_w = np.where(keep, 1.0 / np.where(keep, w, 1.0), 0.0)
+    inverse = (V * inv_w) @ V.T
+    deficient = bool(np.sum(keep) < p) or not np.all(good)
+    return inverse * scale[:, None] * scale[None, :], deficient
+
+
+def solve_reduced(fac: KKTFactor, E, D, b, c) -> ReducedSolution:
+    """Solve the bordered system for ``b (N, 2n[, k])`` and ``c (p[, k])``.
+
+    ``E`` has shape ``(N, 2n, p)``, ``D`` ``(p, p)``.
+    """
+    p = D.shape[0]
+    if p == 0:
+        z = fac.solve(b)
+        return ReducedSolution(z, np.zeros((0,) + b.shape[2:]), D, False)
+    multi = b.ndim == 3
+    bb = b if multi else b[:, :, None]
+    cc = c if multi else c[:, None]
+    k = bb.shape[2]
+    sol = fac.solve(np.concatenate([bb, E], axis=2))
+    Kb, KE = sol[:, :, :k], sol[:, :, k:]
+    Ef = E.reshape(-1, p)
+    Sc = D - Ef.T @ KE.reshape(-1, p)
+    Sc = 0.5 * (Sc + Sc.T)
+    inverse, deficient = equilibrated_inverse(Sc)
+    dtheta = inverse @ (cc - Ef.T @ Kb.reshape(-1, k))
+    z = Kb - np.einsum("kbp,pj->kbj", KE, dtheta)
+    if not multi:
+        z, dtheta = z[:, :, 0], dtheta[:, 0]
+    return ReducedSolution(z, dtheta, Sc, deficient)
