@@ -19,7 +19,7 @@ import warnings
 
 import numpy as np
 
-from pysindy_mme.stepwise import FloatingFStepwise
+from pysindy_mme.optimizers import FloatingFStepwise
 
 
 def problem(n, p, n_true=10, seed=0, noise=0.5):

@@ -18,14 +18,15 @@ from exact_reference import exact_lstsq
 from scipy import stats
 from sklearn.exceptions import ConvergenceWarning
 
-from pysindy_mme import stepwise as stepwise_module
-from pysindy_mme.stepwise import (
+from pysindy_mme.optimizers import (
     ExcludedFeaturesWarning,
     FloatingFStepwise,
     StepwiseCycleWarning,
 )
+from pysindy_mme.optimizers import stepwise as stepwise_module
 
-HALD = Path("/work/shared/data/hald_cement.csv")
+# The 13-row Hald cement table (public textbook data), vendored with the tests.
+HALD = Path(__file__).resolve().parents[1] / "data" / "hald_cement.csv"
 
 
 @pytest.fixture(scope="module")
@@ -524,7 +525,7 @@ def test_bad_parameters_raise_before_work(params, match, monkeypatch):
     def no_work(*args, **kwargs):  # pragma: no cover - must not be reached
         raise AssertionError("validation must happen before any work")
 
-    monkeypatch.setattr(stepwise_module, "_screen_columns", no_work)
+    monkeypatch.setattr(stepwise_module, "screen_columns", no_work)
     X, y = _data()
     opt = FloatingFStepwise(**params)  # __init__ only stores
     with pytest.raises(ValueError, match=match):
@@ -577,7 +578,7 @@ def test_bad_data_raise_value_error(make, match, monkeypatch):
     def no_work(*args, **kwargs):  # pragma: no cover
         raise AssertionError("validation must happen before any work")
 
-    monkeypatch.setattr(stepwise_module, "_screen_columns", no_work)
+    monkeypatch.setattr(stepwise_module, "screen_columns", no_work)
     X, y = _data()
     x_bad, y_bad, sw = make(X, y)
     with pytest.raises(ValueError, match=match):

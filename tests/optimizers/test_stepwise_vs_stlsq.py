@@ -31,7 +31,10 @@ import pysindy as ps
 import pytest
 
 from pysindy_mme import FloatingFStepwise, systems
-from pysindy_mme.anova import fit_anova
+from pysindy_mme.optimizers import fit_anova
+
+# Many-seed statistical studies: not in the edit loop (pytest -m "not slow").
+pytestmark = pytest.mark.slow
 
 N_SEEDS = 20
 

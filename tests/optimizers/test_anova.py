@@ -9,7 +9,7 @@ import pytest
 from exact_reference import exact_lstsq
 from scipy import stats
 
-from pysindy_mme.anova import (
+from pysindy_mme.optimizers.anova import (
     AnovaTable,
     f_critical,
     f_pvalue,
@@ -17,7 +17,8 @@ from pysindy_mme.anova import (
     lstsq_refined,
 )
 
-HALD = Path("/work/shared/data/hald_cement.csv")
+# The 13-row Hald cement table (public textbook data), vendored with the tests.
+HALD = Path(__file__).resolve().parents[1] / "data" / "hald_cement.csv"
 
 
 @pytest.fixture(scope="module")

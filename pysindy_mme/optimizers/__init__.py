@@ -1,0 +1,32 @@
+"""Optimizers: floating-F stepwise regression, its ANOVA statistics and summaries.
+
+:class:`FloatingFStepwise` is a pysindy optimizer (``ps.SINDy(optimizer=
+FloatingFStepwise())``). The modules, one job each:
+
+* :mod:`.screening`: library columns that can never be selected, and why;
+* :mod:`.incremental_qr`: the QR state from which partial F-ratios follow;
+* :mod:`.selection`: the Phase I / Phase II machine over that state;
+* :mod:`.final_fit`: coefficients and ANOVA table of the chosen model;
+* :mod:`.stepwise`: the estimator (parameters, validation, fit);
+* :mod:`.anova`: statistics (ANOVA table, F critical values, accurate lstsq);
+* :mod:`.tables`, :mod:`.summary`: text and HTML reports.
+"""
+
+from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
+from .anova import AnovaTable, f_critical, f_pvalue, fit_anova, lstsq_refined
+from .selection import Step
+from .stepwise import FloatingFStepwise
+from .summary import StepwiseSummary
+
+__all__ = [
+    "AnovaTable",
+    "ExcludedFeaturesWarning",
+    "FloatingFStepwise",
+    "Step",
+    "StepwiseCycleWarning",
+    "StepwiseSummary",
+    "f_critical",
+    "f_pvalue",
+    "fit_anova",
+    "lstsq_refined",
+]

@@ -1,0 +1,42 @@
+"""Small numerical helpers shared by the optimizer modules."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["EPS", "column_blocks", "pow2_scale", "safe_ratio"]
+
+EPS = np.finfo(float).eps
+# Temporaries of size n_samples x block are capped at this many doubles (8 MB).
+BLOCK_ELEMENTS = 1 << 20
+
+
+def safe_ratio(num, den):
+    """``num / den`` with ``x / 0 = inf`` (x > 0) and ``0 / 0 = 0``, no warnings."""
+    num = np.asarray(num, dtype=float)
+    den = np.asarray(den, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = num / den
+    out = np.where(den > 0, out, np.where(num > 0, np.inf, 0.0))
+    return out[()]
+
+
+def pow2_scale(max_abs):
+    """Powers of two ``s`` with ``max_abs * s`` in ``[0.5, 1)``.
+
+    1 where ``max_abs`` is 0 or not finite. Multiplying by a power of two is
+    exact in floating point, so data in any units can be brought to unit
+    magnitude (where sums of squares neither overflow nor underflow) without
+    changing any digit.
+    """
+    max_abs = np.asarray(max_abs, dtype=float)
+    ok = np.isfinite(max_abs) & (max_abs > 0)
+    _, exponent = np.frexp(np.where(ok, max_abs, 1.0))
+    return np.where(ok, np.ldexp(1.0, -exponent), 1.0)
+
+
+def column_blocks(n_rows: int, n_cols: int):
+    """Column slices whose ``n_rows x width`` temporaries stay small."""
+    width = max(1, BLOCK_ELEMENTS // max(n_rows, 1))
+    for start in range(0, n_cols, width):
+        yield slice(start, min(start + width, n_cols))

@@ -1,0 +1,103 @@
+"""The final fit of one target: coefficients and ANOVA table on the support.
+
+After selection, the chosen model is described from scratch by a direct QR
+least-squares fit (:func:`~.anova.fit_anova`), independent of the incremental
+computations; the constant is then kept or dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .anova import fit_anova, lstsq_refined
+from .incremental_qr import IncrementalQR
+from .screening import Screen
+
+__all__ = ["final_fit"]
+
+
+def final_fit(
+    state: IncrementalQR,
+    x,
+    y,
+    w,
+    screen: Screen,
+    *,
+    tolerance: float,
+    max_report: int,
+    remove_threshold: float,
+    drop_constant: bool,
+):
+    """Coefficients on the support (accurate QR solve) and the ANOVA table.
+
+    ``y`` is the target scaled like the state's (``state.y_unit`` converts
+    back). The fit runs on the support and reported columns only, each
+    multiplied by its power-of-two ``screen.scale``; the table and the
+    coefficients are then converted to the units of the data (exactly).
+    """
+    support = np.sort(np.asarray(state.support, dtype=int))
+    top = []
+    if max_report > 0:
+        f_cand = state.candidate_f()
+        order = np.argsort(-f_cand, kind="stable")
+        order = order[np.isfinite(f_cand[order])][:max_report]
+        top = [int(i) for i in order]
+    k = support.size
+    cols = np.concatenate([support, np.asarray(top, dtype=int)])
+    xs = x[:, cols] * screen.scale[cols]
+    table = fit_anova(
+        xs,
+        y,
+        np.arange(k),
+        intercept=True,
+        sample_weight=w,
+        candidates=np.arange(k, cols.size),
+        tolerance=tolerance,
+    )
+    col_unit = screen.scale[support]
+    y_unit = np.float64(state.y_unit)
+
+    def squared_units(value):
+        # Sums of squares of data near 1e+-154 may not be representable
+        # (inf or 0); the selection itself ran on the scaled target.
+        with np.errstate(over="ignore", under="ignore"):
+            return float(value * y_unit * y_unit)
+
+    table = replace(
+        table,
+        features=tuple(int(j) for j in support),
+        out_features=tuple(top),
+        coefficients=table.coefficients * col_unit * y_unit,
+        std_errors=table.std_errors * col_unit * y_unit,
+        intercept=float(table.intercept * y_unit),
+        intercept_std_error=float(table.intercept_std_error * y_unit),
+        ss_regression=squared_units(table.ss_regression),
+        ss_residual=squared_units(table.ss_residual),
+        ss_total=squared_units(table.ss_total),
+        ms_regression=squared_units(table.ms_regression),
+        ms_residual=squared_units(table.ms_residual),
+    )
+    row = np.zeros(x.shape[1])
+    sw = np.sqrt(w)
+    xw = xs[:, :k] * sw[:, None]
+    origin = lstsq_refined(xw, y * sw) if k else np.zeros(0)
+    if state.exact_fit():
+        # Noise-free target: the constant's t**2 is a ratio of rounding
+        # errors. It is needed only if the fit without it is not exact.
+        resid = y * sw - xw @ origin
+        insignificant = float(resid @ resid) <= state.floor2
+    else:
+        insignificant = not table.intercept_partial_f >= remove_threshold
+    dropped = bool(drop_constant and insignificant)
+    if dropped:
+        icpt = 0.0
+        row[support] = origin * col_unit * y_unit
+    else:
+        icpt = table.intercept
+        row[support] = table.coefficients
+        if screen.carrier is not None:
+            row[screen.carrier] = icpt / screen.carrier_value
+            icpt = 0.0
+    return row, icpt, table, dropped

@@ -1,0 +1,238 @@
+"""The incremental QR state of one target, from which partial F-ratios follow.
+
+:class:`IncrementalQR` keeps an orthonormal basis of the model's columns and
+the projections of the library and of the target on it. Every candidate's
+partial F-ratio of entry (eq. 19) and every model function's partial F-ratio
+(eq. 20) then follows without a refit; adding or removing a function updates
+the state in place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+from scipy.linalg.lapack import dtrtri
+
+from ._numeric import EPS, safe_ratio
+from .screening import Screen, xt
+
+__all__ = ["IncrementalQR"]
+
+# A target reproduced to this relative accuracy is fitted to rounding level:
+# partial F-ratios computed from a rounding-noise residual are meaningless, so
+# no further function may enter.
+EXACT_FIT_RTOL = 1e-12
+
+
+class IncrementalQR:
+    """Incremental least-squares state of one target during selection.
+
+    With ``X`` the weighted library (rows scaled by ``sqrt(w)``) and ``S`` the
+    model, it holds ``Q`` (orthonormal basis of the weighted constant and the
+    model columns), the triangular ``T`` with ``[sqrt(w), X_S] = Q T``,
+    ``z = Q^T y``, the residual ``e = y - Q z`` and ``C = Q^T X`` (``k+1`` rows,
+    one per basis vector). The residual of candidate ``j`` against the model,
+    ``r_j = x_j - Q C[:, j]``, is never formed: the partial F of entry (eq. 19)
+    needs only ``||r_j||^2 = ||x_j - mean||^2 - sum_{i>0} C[i, j]^2`` and
+    ``r_j^T e = x_j^T e`` (``e`` is orthogonal to ``Q``); both are kept up to
+    date. Adding a column costs one product ``X^T q`` (``O(n p)``, read
+    only); removing one rotates the small factor (``T`` minus a column, made
+    triangular again by an orthogonal ``G``; ``Q G``, ``G^T C``: ``O(n k^2 +
+    k^2 p)``) and the dropped direction ``u`` gives ``e += u (u^T y)``,
+    ``X^T e += (u^T X) (u^T y)`` and ``||r||^2 += (u^T X)^2``.
+    Where subtracting squares would lose accuracy (a candidate nearly in the
+    span of the model), ``r_j`` is recomputed explicitly (Gram-Schmidt twice).
+
+    ``X`` here is the library with each column multiplied by ``scale`` (see
+    :func:`~.screening.screen_columns`), applied on the fly; ``yw`` is the weighted
+    target already scaled to unit magnitude, and ``y_unit`` the factor that
+    converts its coefficients back to the units of the data.
+    """
+
+    def __init__(self, x, sw, yw, screen: Screen, n_eff, tolerance, y_unit=1.0):
+        self.x = x
+        self.scale = screen.scale
+        self.y_unit = y_unit
+        self.sw = sw
+        self.yw = yw
+        self.carrier = screen.carrier
+        self.carrier_value = screen.carrier_value
+        self.eligible = screen.eligible
+        self.cn2 = screen.cn2
+        self.un2 = screen.un2
+        self.n_eff = n_eff
+        self.tol2 = tolerance**2
+        n, p = x.shape
+        self.support = []  # library columns, in the order of Q's columns 1..k
+        self.in_model = np.zeros(p, dtype=bool)
+        cap = 8
+        self.Q = np.zeros((n, cap), order="F")
+        self.C = np.zeros((cap, p))
+        norm_sw = float(np.linalg.norm(sw))
+        self.Q[:, 0] = sw / norm_sw
+        self.C[0] = np.where(self.eligible, screen.mean * norm_sw, 0.0)
+        self.T = np.array([[norm_sw]])
+        self.z = np.array([self.Q[:, 0] @ yw])
+        self.e = yw - self.Q[:, 0] * self.z[0]
+        self.e -= self.Q[:, 0] * (self.Q[:, 0] @ self.e)
+        self.floor2 = (EXACT_FIT_RTOL * float(np.linalg.norm(yw))) ** 2
+        self.sst = self.sse()  # centred total sum of squares
+        self.nr2 = self.cn2.copy()
+        self._exact_g()
+
+    @property
+    def k(self) -> int:
+        return len(self.support)
+
+    def sse(self) -> float:
+        return float(self.e @ self.e)
+
+    def exact_fit(self) -> bool:
+        return self.sse() <= self.floor2
+
+    def _exact_g(self):
+        """``g = X^T e`` by a product with the library (resets rounding drift)."""
+        self.g = xt(self.x, self.sw * self.e, self.eligible) * self.scale
+        self.g[self.in_model] = 0.0
+        self.g_sse = self.sse()
+
+    def coefficients(self) -> np.ndarray:
+        """Least-squares coefficients of ``[constant, support...]`` (data units)."""
+        beta = scipy.linalg.solve_triangular(self.T, self.z) * self.y_unit
+        beta[1:] *= self.scale[self.support]
+        return beta
+
+    def coefficient_row(self) -> np.ndarray:
+        """Coefficients on every library column; the constant on its carrier column.
+
+        (Without a carrier column the constant is left out: ``coef_``'s meaning.)
+        """
+        beta = self.coefficients()
+        row = np.zeros(self.in_model.size)
+        row[self.support] = beta[1:]
+        if self.carrier is not None:
+            row[self.carrier] = beta[0] / self.carrier_value
+        return row
+
+    def overall_f(self) -> float:
+        """Model F-ratio MSR / MSE (eq. 10); 0 for the constant-only model."""
+        k = self.k
+        if k == 0:
+            return 0.0
+        sse = self.sse()
+        return float(safe_ratio((self.sst - sse) / k, sse / (self.n_eff - k - 1)))
+
+    def in_model_f(self) -> np.ndarray:
+        """Partial F-ratios (eq. 20) of ``[constant, support...]``: ``t**2``."""
+        k = self.k
+        Tinv, info = dtrtri(self.T, lower=0)
+        if info != 0:  # pragma: no cover - T is nonsingular by construction
+            Tinv = np.linalg.pinv(self.T)
+        beta = Tinv @ self.z
+        diag = np.einsum("ij,ij->i", Tinv, Tinv)
+        s2 = self.sse() / (self.n_eff - k - 1)
+        return safe_ratio(beta**2, s2 * diag)
+
+    def candidate_f(self) -> np.ndarray:
+        """Partial F-ratios of entry (eq. 19); ``-inf`` where not eligible."""
+        sse = self.sse()
+        dof_new = self.n_eff - self.k - 2
+        elig = self.eligible & ~self.in_model & (self.nr2 > self.tol2 * self.cn2)
+        if dof_new < 1:
+            elig[:] = False
+        with np.errstate(divide="ignore", invalid="ignore"):
+            red = np.where(elig, self.g**2 / np.where(elig, self.nr2, 1.0), 0.0)
+        red = np.minimum(red, sse)
+        f = safe_ratio(red * dof_new, np.maximum(sse - red, 0.0))
+        return np.where(elig, f, -np.inf)
+
+    def _grow(self):
+        cap = self.Q.shape[1]
+        if self.k + 1 < cap:
+            return
+        Q = np.zeros((self.Q.shape[0], 2 * cap), order="F")
+        Q[:, :cap] = self.Q
+        C = np.zeros((2 * cap, self.C.shape[1]))
+        C[:cap] = self.C
+        self.Q, self.C = Q, C
+
+    def _refresh(self, cols):
+        """Recompute ``r_j`` for ``cols`` explicitly; refresh their statistics."""
+        k1 = self.k + 1
+        Qk = self.Q[:, :k1]
+        Xj = self.x[:, cols] * self.sw[:, None] * self.scale[cols]
+        A = Qk.T @ Xj
+        Rj = Xj - Qk @ A
+        A2 = Qk.T @ Rj
+        Rj -= Qk @ A2
+        self.C[:k1, cols] = A + A2
+        self.nr2[cols] = np.einsum("ij,ij->j", Rj, Rj)
+        self.g[cols] = Rj.T @ self.e
+
+    def add(self, j: int) -> None:
+        self._grow()
+        k1 = self.k + 1
+        Qk = self.Q[:, :k1]
+        xj = self.x[:, j] * (self.sw * self.scale[j])
+        # Gram-Schmidt twice: orthogonal to working precision even when the
+        # column is nearly in the span of the model.
+        a = Qk.T @ xj
+        r = xj - Qk @ a
+        a2 = Qk.T @ r
+        r -= Qk @ a2
+        a += a2
+        rho = float(np.linalg.norm(r))
+        q = r / rho
+        T = np.zeros((k1 + 1, k1 + 1))
+        T[:k1, :k1] = self.T
+        T[:k1, k1] = a
+        T[k1, k1] = rho
+        self.T = T
+        zq = float(q @ self.e)
+        self.z = np.append(self.z, zq)
+        self.e -= q * zq
+        self.Q[:, k1] = q
+        # the one O(n p) product
+        cq = xt(self.x, self.sw * q, self.eligible) * self.scale
+        self.C[k1] = cq
+        self.support.append(j)
+        self.in_model[j] = True
+        old = self.nr2
+        self.nr2 = old - cq**2
+        self.g = self.g - cq * zq
+        self.nr2[self.in_model] = 0.0
+        self.g[self.in_model] = 0.0
+        if self.sse() < 1e-4 * self.g_sse:
+            self._exact_g()  # e shrank a lot: refresh the products
+        # Subtracting squares loses accuracy when most of ||r_j|| goes away:
+        # the error estimate eps * (old + 2 sqrt(old * ||x_j||^2)) / new.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = EPS * (old + 2 * np.sqrt(old * self.un2)) / self.nr2
+        redo = np.flatnonzero(
+            self.eligible & ~self.in_model & ((self.nr2 <= 0) | ~(err < 1e-8))
+        )
+        if redo.size:
+            self._refresh(redo)
+
+    def remove(self, j: int) -> None:
+        k1 = self.k + 1
+        i = self.support.index(j) + 1  # column of T (0 is the constant)
+        Tdel = np.delete(self.T, i, axis=1)  # (k+1, k): Hessenberg from i on
+        G, Tnew = np.linalg.qr(Tdel, mode="complete")
+        Qr = self.Q[:, :k1] @ G
+        Cr = G.T @ self.C[:k1]
+        zr = G.T @ self.z
+        u, cu, a = Qr[:, -1], Cr[-1], float(zr[-1])  # the dropped direction
+        self.Q[:, : k1 - 1] = Qr[:, :-1]
+        self.Q[:, k1 - 1] = 0.0
+        self.C[: k1 - 1] = Cr[:-1]
+        self.C[k1 - 1] = 0.0
+        self.T = Tnew[:-1]
+        self.z = zr[:-1]
+        self.support.remove(j)
+        self.in_model[j] = False
+        self.e = self.e + u * a
+        self.g = self.g + cu * a
+        self.nr2 = self.nr2 + cu**2
+        self.nr2[self.in_model] = 0.0
+        self.g[self.in_model] = 0.0

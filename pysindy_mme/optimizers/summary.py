@@ -1,0 +1,157 @@
+"""The summary of a fitted :class:`FloatingFStepwise`: tables as text and HTML.
+
+:func:`build_summary` assembles, per target, the final model's ANOVA table
+(the paper's Table II) and the step history into a :class:`StepwiseSummary`.
+"""
+
+from __future__ import annotations
+
+import html
+import numbers
+
+from .tables import anova_html, anova_text, steps_html, steps_text
+
+__all__ = ["StepwiseSummary", "build_summary"]
+
+
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}" + ("" if count == 1 else "s")
+
+
+class StepwiseSummary(str):
+    """The summary of a fitted :class:`FloatingFStepwise`, in statsmodels' style.
+
+    It *is* the text (a ``str`` subclass), so ``print(summary)``, ``in``,
+    ``==`` and string methods work as on the plain text; notebooks call
+    :meth:`_repr_html_` and show the same tables as HTML.
+
+    Attributes
+    ----------
+    tables : list of AnovaTable
+        The final ANOVA table of each target shown.
+    steps : list of list of Step
+        The step history of each target shown.
+    """
+
+    def __new__(cls, text, html_text="", tables=(), steps=()):
+        obj = super().__new__(cls, text)
+        obj._html = html_text
+        obj.tables = list(tables)
+        obj.steps = list(steps)
+        return obj
+
+    def __repr__(self) -> str:
+        # The text itself, not a quoted string: an interactive console shows
+        # the tables when the summary is the value of an expression.
+        return str(self)
+
+    def __str__(self) -> str:
+        return str.__str__(self)
+
+    def __reduce__(self):
+        return (StepwiseSummary, (str(self), self._html, self.tables, self.steps))
+
+    def as_text(self) -> str:
+        """The summary as plain text (what ``print`` shows)."""
+        return str(self)
+
+    def as_html(self) -> str:
+        """The summary as HTML tables."""
+        return self._html
+
+    def _repr_html_(self) -> str:
+        return self._html
+
+
+def _labels(opt, feature_names, target_names, target):
+    """(feature_names, target labels, targets to show), validated."""
+    n_targets, n_features = opt.coef_.shape
+    if feature_names is None:
+        feature_names = opt.feature_names_
+    if feature_names is not None and len(feature_names) != n_features:
+        raise ValueError(
+            f"feature_names has {len(feature_names)} names but the library has "
+            f"{n_features} columns"
+        )
+    if target_names is None:
+        target_names = opt.target_names_
+    if target_names is not None:
+        if len(target_names) != n_targets:
+            raise ValueError(
+                f"target_names has {len(target_names)} names but there are "
+                f"{n_targets} targets"
+            )
+        labels = [f"({name})'" for name in target_names]
+    else:
+        labels = [f"target {t}" for t in range(n_targets)]
+    if target is None:
+        targets = list(range(n_targets))
+    else:
+        if not isinstance(target, numbers.Integral) or not 0 <= target < n_targets:
+            raise ValueError(f"target must be an index in [0, {n_targets - 1}]")
+        targets = [int(target)]
+    return feature_names, labels, targets
+
+
+def _notes(opt, t) -> list:
+    """Plain-text notes under a target's ANOVA table."""
+    notes = []
+    if opt.intercept_dropped_[t]:
+        notes.append(
+            "  Note: the intercept's partial F "
+            f"({opt.anova_[t].intercept_partial_f:.4g}) is below the removal "
+            "threshold; coef_ is refit through the origin."
+        )
+    return notes
+
+
+def _warnings(opt) -> list:
+    out = []
+    if not opt.converged_:
+        out.append("\nWARNING: max_iter was reached; the selection did not settle.")
+    if opt.cycle_detected_:
+        out.append("\nWARNING: a cycle was detected; the selection stopped there.")
+    return out
+
+
+def build_summary(opt, feature_names=None, target_names=None, target=None):
+    """The :class:`StepwiseSummary` of a fitted optimizer (see its ``summary``)."""
+    feature_names, labels, targets = _labels(opt, feature_names, target_names, target)
+
+    def name(j):
+        return str(feature_names[j]) if feature_names is not None else f"f{j}"
+
+    rule = opt._rule_description()
+    text = [rule]
+    page = [f"<p><b>{html.escape(rule)}</b></p>"]
+    if opt.excluded_:
+        text.append("Library columns set aside (never selected):")
+        text += [f"  {name(j)}: {why}" for j, why in opt.excluded_.items()]
+        page.append("<p>Library columns set aside (never selected):</p><ul>")
+        page += [
+            f"<li>{html.escape(name(j))}: {html.escape(why)}</li>"
+            for j, why in opt.excluded_.items()
+        ]
+        page.append("</ul>")
+    for t in targets:
+        table = opt.anova_[t]
+        title = (
+            f"=== {labels[t]}: final model ANOVA table "
+            f"({_plural(len(opt.steps_[t]), 'step')}, n = {table.n:g}) ==="
+        )
+        notes = _notes(opt, t)
+        text += ["", anova_text(table, feature_names, title=title)]
+        text += notes
+        text += [""] + steps_text(opt.steps_[t], feature_names)
+        page.append(anova_html(table, feature_names, title=title))
+        page += [f"<p>{html.escape(note.strip())}</p>" for note in notes]
+        page.append(steps_html(opt.steps_[t], feature_names))
+    warns = _warnings(opt)
+    text += warns
+    page += [f"<p><b>{html.escape(w.strip())}</b></p>" for w in warns]
+    return StepwiseSummary(
+        "\n".join(text),
+        "\n".join(page),
+        tables=[opt.anova_[t] for t in targets],
+        steps=[opt.steps_[t] for t in targets],
+    )
