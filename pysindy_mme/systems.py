@@ -11,6 +11,7 @@ with the state (and input) names as feature names, e.g. ``"x1^2 x2"``.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -122,14 +123,31 @@ class HiddenEffectSystem:
         return np.asarray(self.input_signal(np.asarray(t, dtype=float)), dtype=float)
 
     def simulate(self, t=None, x0=None, model: str = "true") -> np.ndarray:
-        """Noise-free trajectory of the ``"true"`` or ``"assumed"`` model."""
+        """Noise-free trajectory of the ``"true"`` or ``"assumed"`` model.
+
+        Trajectories are cached per model function (the last few grids and
+        initial states), so that many noise seeds on one grid integrate the
+        system once; a copy is returned.
+        """
         t = self.time() if t is None else np.asarray(t, dtype=float)
         x0 = self.x0 if x0 is None else x0
         f = self.true_model if model == "true" else self.assumed_model
-        # The exact input signal (not its samples) drives the simulation.
-        return simulate_model(
-            f, x0, t, self.input_signal, n_states=self.n_states, rtol=1e-10, atol=1e-12
-        )
+        key = (tuple(np.asarray(x0, dtype=float).ravel()), t.size, hash(t.tobytes()))
+        cache = _TRAJECTORIES.setdefault(f, {})
+        if key not in cache:
+            # The exact input signal (not its samples) drives the simulation.
+            cache[key] = simulate_model(
+                f,
+                x0,
+                t,
+                self.input_signal,
+                n_states=self.n_states,
+                rtol=1e-10,
+                atol=1e-12,
+            )
+            while len(cache) > 4:
+                cache.pop(next(iter(cache)))
+        return cache[key].copy()
 
     def measure(
         self,
@@ -158,6 +176,11 @@ class HiddenEffectSystem:
     def true_correction(self, x, t, u=None) -> np.ndarray:
         """``f_true(x, t, u) - f_assumed(x, t, u)``."""
         return _call(self.true_model, x, t, u) - _call(self.assumed_model, x, t, u)
+
+
+# model function -> {(x0, n, hash of t): trajectory}; weak keys, so a system's
+# cache goes with its functions.
+_TRAJECTORIES = weakref.WeakKeyDictionary()
 
 
 def _call(f, x, t, u):

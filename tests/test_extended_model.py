@@ -5,8 +5,9 @@ import pysindy as ps
 import pytest
 
 from pysindy_mme import ExtendedModel
-from pysindy_mme._output_error import OutputErrorProblem, batch_simulate
 from pysindy_mme.core.features import SelectedFeatures
+from pysindy_mme.core.integrate import simulate
+from pysindy_mme.discovery.output_error import OutputErrorModel
 from pysindy_mme.systems import forced_oscillator, van_der_pol
 
 
@@ -38,9 +39,19 @@ def test_equations_show_assumed_and_correction_apart(capsys):
     _, _, model = _vdp_extended()
     eqs = model.equations(precision=2)
     assert eqs[0] == "[assumed] x2"
-    assert eqs[1] == "[assumed] 0  +  [correction] -1.00 x1 + 1.00 x2 - 1.00 x1^2 x2"
+    # significant digits (issue 14): a whole number prints as one
+    assert eqs[1] == "[assumed] 0  +  [correction] -1 x1 + 1 x2 - 1 x1^2 x2"
     model.print(precision=2)
     assert "(x2)' = [assumed] 0" in capsys.readouterr().out
+
+
+def test_equations_never_round_a_term_away():
+    """Issue 14: coefficients of 1e-5 next to 1e5 both print (no fixed decimals)."""
+    system, _, model = _vdp_extended(coefs=(-1.23456e-5, 98765.4, -4.2e-4))
+    eq = model.equations()[1]
+    assert (
+        "-1.235e-05 x1" in eq and "+ 9.877e+04 x2" in eq and "- 0.00042 x1^2 x2" in eq
+    )
 
 
 def test_extended_model_with_input_requires_u():
@@ -84,11 +95,13 @@ def test_selected_features_falls_back_for_unparseable_names():
 
 def test_batch_rk4_matches_closed_form_and_flags_blow_up():
     t = np.linspace(0, 2, 81)
-    x = batch_simulate(lambda x, s, u: -x, np.array([[1.0], [2.0]]), t)
+    x = simulate(lambda x, s, u: -x, np.array([[1.0], [2.0]]), t, substeps=2).x
     np.testing.assert_allclose(x[:, :, 0], np.outer([1, 2], np.exp(-t)), rtol=1e-7)
     # x' = x^2 from 1 blows up at t = 1: the trajectory turns NaN, no exception
-    x = batch_simulate(lambda x, s, u: x**2, np.array([[1.0]]), t)
+    run = simulate(lambda x, s, u: x**2, np.array([[1.0]]), t, substeps=2)
+    x = run.x
     assert np.isnan(x[0, -1, 0]) and np.isfinite(x[0, 10, 0])
+    assert 35 < run.diverged_at[0] < 45  # the sample where it left the bound
 
 
 def test_output_error_refit_is_unbiased_and_its_errors_are_honest():
@@ -103,24 +116,37 @@ def test_output_error_refit_is_unbiased_and_its_errors_are_honest():
         cols = [names.index(n) for n in ("x1", "x2", "x1^2 x2")]
         sel = SelectedFeatures(lib, ["x1", "x2"], cols, data.x)
 
-        def base(x, s, us):
-            return system.assumed_model(x, np.full(len(x), s))
+        def base(x, t, u, p):
+            return system.assumed_model(x, t)
 
-        problem = OutputErrorProblem(
+        problem = OutputErrorModel(
             base,
-            sel,
-            [(1, 0), (1, 1), (1, 2)],
             2,
-            lambda x: x[..., [0]],
+            sel,
             data.y,
             data.t,
             None,
             np.eye(1) * 0.01,
+            np.eye(2)[[0]],
         )
-        fit = problem.fit(np.array([1.05, 0.1, -0.7, 0.7, -0.7]))
+        # start where the single-shooting version of this test started: the
+        # model with coefficients (-0.7, 0.7, -0.7) simulated from (1.05, 0.1)
+        c0 = np.array([-0.7, 0.7, -0.7])
+
+        def start_model(x, s, u, c0=c0):
+            xd = system.assumed_model(x, np.full(len(x), s))
+            xd[:, 1] += (
+                c0[0] * x[:, 0] + c0[1] * x[:, 1] + c0[2] * x[:, 0] ** 2 * x[:, 1]
+            )
+            return xd
+
+        start = simulate(start_model, np.array([1.05, 0.1]), data.t, substeps=2).x[0]
+        fit = problem.fit([(1, 0), (1, 1), (1, 2)], c0, start)
         assert fit.converged
         truth = np.array([1.0, 0.0, -1.0, 1.0, -1.0])
-        z_scores.append((fit.params - truth) / fit.std_errors)
+        params = np.concatenate([fit.x[0], fit.theta])
+        se = np.concatenate([np.sqrt(np.diag(fit.x0_covariance)), fit.std_errors])
+        z_scores.append((params - truth) / se)
         assert fit.cost / fit.n_residuals == pytest.approx(1.0, abs=0.25)
     z = np.array(z_scores)
     # standardised errors: mean near 0, spread near 1 (6 seeds x 5 parameters)

@@ -35,9 +35,9 @@ import pysindy as ps
 import pytest
 from sklearn.exceptions import ConvergenceWarning
 
-import pysindy_mme.discovery as discovery_module
+import pysindy_mme.discovery.inputs as discovery_inputs
 import pysindy_mme.mme as mme_module
-import pysindy_mme.stepwise as stepwise_module
+import pysindy_mme.optimizers.stepwise as stepwise_module
 from pysindy_mme import (
     MME,
     ExcludedFeaturesWarning,
@@ -46,9 +46,9 @@ from pysindy_mme import (
     StepwiseCycleWarning,
     discover,
 )
-from pysindy_mme._output_error import OutputErrorProblem
 from pysindy_mme.cli import main
 from pysindy_mme.discovery import DiscoveryWarning
+from pysindy_mme.discovery.output_error import OutputErrorModel
 from pysindy_mme.smoother import DivergenceError, MMESmoother
 from pysindy_mme.systems import lotka_volterra, van_der_pol
 
@@ -934,8 +934,8 @@ def no_long_computation(monkeypatch):
         raise LongComputationStarted
 
     monkeypatch.setattr(MMESmoother, "solve", tripwire)
-    monkeypatch.setattr(stepwise_module, "_screen_columns", tripwire)
-    monkeypatch.setattr(OutputErrorProblem, "fit", tripwire)
+    monkeypatch.setattr(stepwise_module, "screen_columns", tripwire)
+    monkeypatch.setattr(OutputErrorModel, "fit", tripwire)
 
 
 def test_the_table_covers_every_entry_point_and_enough_cases():
@@ -1281,7 +1281,7 @@ def test_discover_reports_mme_non_convergence(monkeypatch):
             self.max_iter = 1
             return super().fit(y, t, u)
 
-    monkeypatch.setattr(discovery_module, "MME", OneIterationMME)
+    monkeypatch.setattr(discovery_inputs, "MME", OneIterationMME)
     system = lotka_volterra()
     data = system.measure(0)
     with pytest.warns(DiscoveryWarning, match="MME did not converge"):
@@ -1301,13 +1301,13 @@ def test_discover_reports_mme_non_convergence(monkeypatch):
 
 
 def test_discover_reports_refit_non_convergence(monkeypatch):
-    original = OutputErrorProblem.fit
+    original = OutputErrorModel.fit
 
-    def not_converging(self, params0, *args, **kwargs):
-        result = original(self, params0, *args, **kwargs)
+    def not_converging(self, *args, **kwargs):
+        result = original(self, *args, **kwargs)
         return dataclasses.replace(result, converged=False, message="forced")
 
-    monkeypatch.setattr(OutputErrorProblem, "fit", not_converging)
+    monkeypatch.setattr(OutputErrorModel, "fit", not_converging)
     with pytest.warns(DiscoveryWarning, match="refit"):
         _discover(feature_library=ps.PolynomialLibrary(degree=3))
 

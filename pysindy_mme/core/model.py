@@ -259,9 +259,14 @@ class ParametricModel:
     features : callable ``(z (K, n + m), columns) -> (K, len(columns))``
         Library columns at ``z`` = states then inputs.
     slots : sequence of (state, column)
+    n_extra : int
+        Trailing parameters the dynamics do not depend on (measurement
+        offsets, say): ``theta = [p, c, extra]``.
     """
 
-    def __init__(self, base, n_states, n_physical=0, features=None, slots=()):
+    def __init__(
+        self, base, n_states, n_physical=0, features=None, slots=(), n_extra=0
+    ):
         self.base = base
         self.n_states = int(n_states)
         self.n_physical = int(n_physical)
@@ -271,7 +276,7 @@ class ParametricModel:
         position = {c: k for k, c in enumerate(self.used)}
         self._rows = np.array([i for i, _ in self.slots], dtype=int)
         self._cols = np.array([position[c] for _, c in self.slots], dtype=int)
-        self.n_params = self.n_physical + len(self.slots)
+        self.n_params = self.n_physical + len(self.slots) + int(n_extra)
 
     def _z(self, x, u):
         return (
@@ -286,7 +291,8 @@ class ParametricModel:
         if self.slots:
             phi = self.features(self._z(x, u), self.used)
             coef = np.zeros((len(self.used), self.n_states))
-            np.add.at(coef, (self._cols, self._rows), theta[self.n_physical :])
+            c = theta[self.n_physical : self.n_physical + len(self.slots)]
+            np.add.at(coef, (self._cols, self._rows), c)
             out += phi @ coef
         return out
 

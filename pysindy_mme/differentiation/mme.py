@@ -13,6 +13,7 @@ maximum marginal likelihood. The numerical solver lives in
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from pysindy.differentiation import BaseDifferentiation
@@ -20,6 +21,8 @@ from sklearn.exceptions import ConvergenceWarning
 
 from ..core.integrate import HOLDS
 from ..core.model import as_model_function
+from ..core.noise import estimate_noise_variance
+from ..core.tables import sig
 from ..core.validation import (
     as_float_array,
     check_finite,
@@ -34,7 +37,42 @@ from .random_walk import RandomWalkModel, random_walk_problem
 from .transcription import MMESmoother
 from .weight import WSearch, channel_ratios, search_W
 
-__all__ = ["MME", "difference_noise_variance", "noise_covariance"]
+__all__ = ["MME", "MMEProblem", "difference_noise_variance", "noise_covariance"]
+
+
+@dataclass
+class MMEProblem:
+    """A checked MME problem (see :meth:`MME.check`).
+
+    Attributes
+    ----------
+    smoother : MMESmoother
+        The solver, set up (``error_model`` applied).
+    W_spec : str or ndarray
+        ``"auto"``, ``"ml"`` or the fixed ``(q, q)`` weight.
+    noise_covariance : ndarray (m, m)
+    n_states : int
+    error_states : ndarray of int
+    measurement : ndarray (m, n) or callable
+        ``C`` of ``y = C x``, or ``g(x)``.
+    measurement_jacobian : callable or None
+    model : ModelFunction
+        The assumed model, checked.
+    y, t, u
+        The checked data (``u`` as given on the grid, a callable or None).
+    """
+
+    smoother: object
+    W_spec: object
+    noise_covariance: np.ndarray
+    n_states: int
+    error_states: np.ndarray
+    measurement: object
+    measurement_jacobian: object
+    model: object
+    y: np.ndarray
+    t: np.ndarray
+    u: object
 
 
 class MME(BaseDifferentiation):
@@ -75,8 +113,9 @@ class MME(BaseDifferentiation):
     noise_variance : "auto", float, array-like (m,) or (m, m)
         Measurement noise: one variance for every channel, one per channel,
         or a full covariance ``R``. ``"auto"`` estimates a variance per channel
-        from 4th differences of the data (:func:`difference_noise_variance`)
-        and warns with the value.
+        from the white-noise floor of the data's spectrum
+        (:func:`~pysindy_mme.estimate_noise_variance`, which does not take
+        fast signal for noise) and warns with the value.
     error_states : sequence of int, optional
         States whose equation has a model error (default: all).
     error_model : {"white", "random_walk"}, default "white"
@@ -262,7 +301,13 @@ class MME(BaseDifferentiation):
         -------
         self
         """
-        smoother, W_spec, R, n = self._build(y, t, u)
+        problem = self.check(y, t, u)
+        smoother, W_spec, R, n = (
+            problem.smoother,
+            problem.W_spec,
+            problem.noise_covariance,
+            problem.n_states,
+        )
 
         def solve(W, start):
             return self._solve(smoother, W, start)
@@ -394,8 +439,18 @@ class MME(BaseDifferentiation):
             )
         return u
 
-    def _build(self, y, t, u):
-        """Check everything, then set up the solver (no solve yet)."""
+    def check(self, y, t=1.0, u=None) -> MMEProblem:
+        """Check the settings against the data and set up the solver.
+
+        Everything :meth:`fit` checks, without solving (the cost is one
+        evaluation of the model on the initial guess): bad input raises here,
+        before any long computation. ``noise_variance="auto"`` is estimated
+        (and warned about) here.
+
+        Returns
+        -------
+        MMEProblem
+        """
         n = self._check_settings()
         model = as_model_function(self.assumed_model, n, name="assumed_model")
         if model.n_states != n:
@@ -407,7 +462,7 @@ class MME(BaseDifferentiation):
         N, m = y.shape
         t = check_time(t, N, "t")
         measurement, g_jac = self._measurement_model(n, m)
-        R = self._noise(y, m)
+        R = self._noise(y, t, m)
         es = (
             np.arange(n)
             if self.error_states is None
@@ -448,7 +503,19 @@ class MME(BaseDifferentiation):
             smoother.state_labels = [f"x{i}" for i in range(n)] + [
                 f"d{i} (model error of x{i})" for i in es
             ]
-        return smoother, W_spec, R, n
+        return MMEProblem(
+            smoother=smoother,
+            W_spec=W_spec,
+            noise_covariance=R,
+            n_states=n,
+            error_states=es,
+            measurement=measurement,
+            measurement_jacobian=g_jac,
+            model=model,
+            y=y,
+            t=t,
+            u=u,
+        )
 
     @staticmethod
     def _check_first_evaluation(smoother, model, measurement, es):
@@ -500,7 +567,7 @@ class MME(BaseDifferentiation):
                 "Measure them (measured / measurement_matrix) or change the model."
             )
 
-    def _noise(self, y, m):
+    def _noise(self, y, t, m):
         nv = self.noise_variance
         if isinstance(nv, str):
             if nv != "auto":
@@ -508,16 +575,26 @@ class MME(BaseDifferentiation):
                     f"noise_variance must be 'auto', a number, a vector or a "
                     f"matrix; got {nv!r}"
                 )
-            var = difference_noise_variance(y)
+            var, diagnostics = estimate_noise_variance(
+                y, t, warn=False, return_diagnostics=True
+            )
             if np.any(var <= 0):
                 raise ValueError(
                     "noise_variance='auto' estimated a zero noise variance (the "
                     "data look noise-free or quantised); give noise_variance"
                 )
+            doubts = "; ".join(
+                f"channel {d.channel}: {d.reason}"
+                for d in diagnostics
+                if not d.reliable
+            )
             warnings.warn(
                 "noise_variance='auto': estimated the measurement noise variance "
-                f"from 4th differences of the data as {np.round(var, 6).tolist()}; "
-                "give noise_variance if it is known",
+                f"as [{', '.join(sig(v) for v in var)}] (sd "
+                f"[{', '.join(sig(v) for v in np.sqrt(var))}]) from the noise floor "
+                "of the data's spectrum"
+                + (f"; not reliable - {doubts}" if doubts else "")
+                + ". Give noise_variance if it is known",
                 UserWarning,
                 stacklevel=4,
             )

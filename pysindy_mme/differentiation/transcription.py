@@ -106,12 +106,13 @@ class _Dynamics:
         self.model, self.unit = model, unit
         self.n = model.n_states
         self.p = int(getattr(model, "n_params", 0))
+        self.parametric = hasattr(model, "param_jacobian")
         own = type(model).jacobian is not ModelFunction.jacobian
         self._own_jacobian = isinstance(model, ModelFunction) and own
 
     def __call__(self, z, t, u, theta):
         s = self.unit
-        if self.p:
+        if self.parametric:
             return self.model(s * z, t, u, theta) / s
         return self.model(s * z, t, u) / s
 

@@ -1,0 +1,30 @@
+"""The study: what the assumed model gets wrong, why, the fix, and the gain.
+
+:func:`discover` (``study.py``) runs five steps (``steps.py``), each
+returning a small record the next one takes:
+
+1. fit the assumed model to the measurements (``output_error.py``);
+2. estimate the states and the model error ``d(t)`` (:class:`MME`);
+3. propose terms by regressing ``d(t)`` on a library (``propose.py``);
+4. confirm them on the measurements (``confirm.py``);
+5. measure the gain (``gain.py``).
+
+Arguments are checked in one place (``inputs.py``); the answer is a
+:class:`Discovery` (``result.py``) with its report (``report.py``) and the
+:class:`ExtendedModel` (``extended.py``).
+"""
+
+from ..exceptions import DiscoveryWarning
+from .extended import ExtendedModel
+from .gain import Gain
+from .result import Discovery, TermEstimate
+from .study import discover
+
+__all__ = [
+    "discover",
+    "Discovery",
+    "DiscoveryWarning",
+    "ExtendedModel",
+    "Gain",
+    "TermEstimate",
+]

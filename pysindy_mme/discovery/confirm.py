@@ -1,0 +1,422 @@
+"""Step 4: confirm and complete the correction terms against the measurements.
+
+The stepwise regression of the MME model error proposes terms, but its
+F-ratios are computed on ``d(t)``, an estimate that is smooth (strongly
+autocorrelated) and shrunk toward zero: they overstate significance, and
+functions that look alike on the estimated trajectory (``x2`` and
+``x2 |x2|``) cannot be told apart there. The measurements, on the other
+hand, carry white noise of known variance, so F-tests on output-error
+residuals are valid. The selection is therefore finished in output-error
+space (:mod:`.output_error`):
+
+1. start: the proposed terms refitted together (initial state and all
+   coefficients, from the MME state estimate), or, when there are many or
+   the joint fit fails, added one at a time in the order the regression
+   chose them, each kept only if it improves the fit significantly;
+2. swap: each term is taken out and the look-alike library functions of its
+   equation (most correlated along the current trajectory) put in instead;
+   a pair of terms of one equation may be merged into the single function
+   most like their fitted combination (``x2 |x2|`` and ``x2^3`` together
+   imitate ``x2``). Swaps and merges are pruned backward and kept when they
+   lower the BIC;
+3. backward: terms whose coefficient is not significant (Wald) leave,
+   weakest first;
+4. forward over the whole library: a score test (the partial F each library
+   function of each error state would have, from the fitted KKT system)
+   ranks the candidates; the best enters if it is significant after a
+   Bonferroni correction, confirmed by an actual fit;
+5. repeat 2-4 until nothing changes; finally the extended model is F-tested
+   against the assumed one.
+
+Every term is tested at the Bonferroni level ``alpha / n_candidates`` (it
+was picked from the whole library), so that the chance of reporting any
+false term when the assumed model is right stays about ``alpha``. A trial
+whose model blows up or cannot be fitted is rejected with that reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .output_error import OutputErrorFit, OutputErrorModel
+
+__all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
+
+#: proposals fitted jointly at the start when there are at most this many
+JOINT_START_MAX = 6
+#: rounds of swap/backward/forward passes
+MAX_ROUNDS = 4
+#: Gauss-Newton iterations allowed to a trial fit (the chosen model is
+#: polished with the full budget)
+TRIAL_ITER = 12
+#: look-alike functions tried in place of each term
+N_LOOK_ALIKES = 2
+
+
+@dataclass
+class Confirmation:
+    """Outcome of :func:`confirm_terms`.
+
+    Attributes
+    ----------
+    slots : list of (state, column)
+        Terms kept.
+    fit : OutputErrorFit or None
+        Final fit (None when no term is kept).
+    rejected : list of (slot, reason)
+        Proposed or tried terms not kept, with the reason.
+    correction_p_value : float
+        F-test of the extended against the assumed model (NaN if no term).
+    log : list of str
+        One line per decision.
+    """
+
+    slots: list
+    fit: OutputErrorFit | None
+    rejected: list = field(default_factory=list)
+    correction_p_value: float = float("nan")
+    log: list = field(default_factory=list)
+
+
+def partial_f_p_value(small: OutputErrorFit, big: OutputErrorFit, n_added=1) -> float:
+    """p-value of the partial F-test: ``big`` (``n_added`` more terms) vs ``small``."""
+    if not (np.isfinite(big.cost) and np.isfinite(small.cost)):
+        return 1.0
+    if big.cost <= 0:
+        return 0.0
+    f_stat = ((small.cost - big.cost) / n_added) / (big.cost / big.dof)
+    return float(stats.f.sf(f_stat, n_added, big.dof)) if f_stat > 0 else 1.0
+
+
+class _Search:
+    """The state of the selection: current terms, fit, log and rejections."""
+
+    def __init__(
+        self,
+        engine: OutputErrorModel,
+        assumed: OutputErrorFit,
+        alpha_term,
+        describe,
+        pool,
+        progress,
+    ):
+        self.engine, self.assumed = engine, assumed
+        self.alpha_term, self.describe, self.pool = alpha_term, describe, list(pool)
+        self.progress = progress or (lambda msg: None)
+        self.slots, self.fit = [], assumed
+        self.log, self.rejected = [], []
+        self.tried = set()
+
+    # -------------------------------------------------------------- fitting
+    def theta(self, fit, coefs):
+        """``[physical, coefs, offsets]`` taking ``fit``'s physical and offsets."""
+        return np.concatenate([fit.physical, np.asarray(coefs, float), fit.offsets])
+
+    def refit(self, slots, coefs, start: OutputErrorFit, polish=False):
+        it = 50 if polish else TRIAL_ITER
+        fit = self.engine.fit(slots, self.theta(start, coefs), start.x, max_iter=it)
+        self.progress(
+            f"  fit {len(slots)} term(s): cost {fit.cost:.6g}, {fit.n_iter} it."
+        )
+        return fit
+
+    def note(self, text):
+        self.log.append(text)
+        self.progress(text)
+
+    def reject(self, slot, reason):
+        self.rejected.append((slot, reason))
+
+    # ------------------------------------------------------------- backward
+    def backward(self, slots, fit):
+        """Drop terms whose coefficient is not significant, weakest first."""
+        removed = []
+        while slots:
+            pvals = fit.coefficient_p_values()
+            worst = int(np.argmax(pvals))
+            if pvals[worst] <= self.alpha_term:
+                break
+            removed.append((slots[worst], float(pvals[worst])))
+            keep = [k for k in range(len(slots)) if k != worst]
+            slots = [slots[k] for k in keep]
+            if not slots:
+                return [], self.assumed, removed
+            fit = self.refit(slots, fit.coefficients[keep], fit)
+        return slots, fit, removed
+
+    def accept(self, slots, fit):
+        self.slots, self.fit = (
+            list(slots),
+            self.refit(slots, fit.coefficients, fit, True),
+        )
+
+    # ---------------------------------------------------------------- start
+    def start(self, proposals, values, x_start):
+        start_fit = OutputErrorFit(
+            slots=(),
+            theta=self.assumed.theta,
+            x=x_start,
+            cost=np.nan,
+            n_residuals=0,
+            n_free=0,
+            covariance=np.zeros((0, 0)),
+            converged=False,
+            message="",
+            rank_deficient=False,
+            n_iter=0,
+            n_physical=self.assumed.n_physical,
+            n_offsets=self.assumed.n_offsets,
+        )
+        if 0 < len(proposals) <= JOINT_START_MAX:
+            joint = self.refit(proposals, values, start_fit, polish=True)
+            p = partial_f_p_value(self.assumed, joint, n_added=len(proposals))
+            if joint.ok and p <= self.alpha_term:
+                self.slots, self.fit = list(proposals), joint
+                self.note(f"joint fit of {len(proposals)} proposals (p = {p:.2g})")
+                return
+        for slot, value in zip(proposals, values):
+            current = self.fit if self.slots else start_fit
+            trial = self.refit(
+                self.slots + [slot], [*self.fit.coefficients, value], current
+            )
+            if not trial.ok or trial.cost >= self.fit.cost:
+                # the regression value may start in a poor basin; from 0 the
+                # new term starts as a small perturbation of the current model
+                retry = self.refit(
+                    self.slots + [slot], [*self.fit.coefficients, 0.0], current
+                )
+                trial = retry if retry.cost < trial.cost else trial
+            if not trial.ok:
+                self.reject(
+                    slot, f"its extended model cannot be fitted ({trial.message})"
+                )
+                continue
+            p = partial_f_p_value(self.fit, trial)
+            if p <= self.alpha_term:
+                self.accept(self.slots + [slot], trial)
+                self.note(f"kept {self.describe(slot)} (p = {p:.2g})")
+            else:
+                self.reject(slot, f"does not improve the fit (p = {p:.2g})")
+                self.note(f"rejected {self.describe(slot)} (p = {p:.2g})")
+
+
+def _most_alike(features, z, ref, pool, n_best):
+    """The ``n_best`` slots of ``pool`` most correlated with ``ref`` along ``z``.
+
+    Returns ``[(slot, ratio)]``, ``ratio`` the least-squares multiple of the
+    candidate that best matches ``ref`` (to start its coefficient). Only
+    candidates with correlation above 0.8.
+    """
+    if not pool or not np.all(np.isfinite(ref)) or np.std(ref) == 0:
+        return []
+    with np.errstate(all="ignore"):
+        others = features(z, [c[1] for c in pool])
+    ok = np.all(np.isfinite(others), axis=0) & (np.std(others, axis=0) > 0)
+    if not np.any(ok):
+        return []
+    rc = ref - ref.mean()
+    oc = others - others.mean(axis=0)
+    with np.errstate(all="ignore"):
+        corr = np.abs(oc.T @ rc) / (np.linalg.norm(oc, axis=0) * np.linalg.norm(rc))
+        ratio = (others.T @ ref) / np.einsum("ij,ij->j", others, others)
+    corr[~ok] = -1.0
+    order = np.argsort(corr)[::-1][:n_best]
+    return [(pool[k], float(ratio[k])) for k in order if corr[k] > 0.8]
+
+
+def _swap_round(search: _Search, checked) -> bool:
+    """Try look-alikes in place of each term; keep a swap that lowers the BIC."""
+    changed = False
+    features = search.engine.features
+    for slot in list(search.slots):
+        if slot not in search.slots or slot in checked:
+            continue
+        checked.add(slot)
+        z = _library_inputs(search.engine, search.fit)
+        pool = [c for c in search.pool if c[0] == slot[0] and c not in search.slots]
+        with np.errstate(all="ignore"):
+            ref = features(z, [slot[1]])[:, 0]
+        best = None
+        for alt, ratio in _most_alike(features, z, ref, pool, N_LOOK_ALIKES):
+            k = search.slots.index(slot)
+            slots = search.slots[:k] + [alt] + search.slots[k + 1 :]
+            coefs = search.fit.coefficients.copy()
+            coefs[k] *= ratio
+            trial = search.refit(slots, coefs, search.fit)
+            if not trial.ok:
+                continue
+            slots, trial, _ = search.backward(slots, trial)
+            if trial.bic() < search.fit.bic() and (
+                best is None or trial.bic() < best[1].bic()
+            ):
+                best = (slots, trial, alt)
+        if best is not None:
+            new_slots, trial, alt = best
+            search.note(f"swapped {search.describe(slot)} for {search.describe(alt)}")
+            for gone in search.slots:
+                if gone not in new_slots:
+                    why = (
+                        f"replaced by {search.describe(alt)}, which fits better"
+                        if gone == slot
+                        else f"redundant once {search.describe(alt)} is in"
+                    )
+                    search.reject(gone, why)
+            search.accept(new_slots, trial)
+            search.tried.add(alt)
+            changed = True
+    return changed
+
+
+def _merge_round(search: _Search, z) -> bool:
+    """Can one library function do the job of two look-alike terms?"""
+    slots, fit = search.slots, search.fit
+    features = search.engine.features
+    with np.errstate(all="ignore"):
+        cols = features(z, [s[1] for s in slots])
+    coefs = fit.coefficients
+    for i in range(len(slots)):
+        for j in range(i + 1, len(slots)):
+            if slots[i][0] != slots[j][0]:
+                continue
+            combo = coefs[i] * cols[:, i] + coefs[j] * cols[:, j]
+            pool = [c for c in search.pool if c[0] == slots[i][0] and c not in slots]
+            for cand, ratio in _most_alike(features, z, combo, pool, 1):
+                keep = [k for k in range(len(slots)) if k not in (i, j)]
+                trial_slots = [slots[k] for k in keep] + [cand]
+                trial = search.refit(trial_slots, [*coefs[keep], ratio], fit)
+                if not trial.ok:
+                    continue
+                trial_slots, trial, _ = search.backward(trial_slots, trial)
+                if trial.bic() < fit.bic():
+                    pair = (
+                        f"{search.describe(slots[i])} and {search.describe(slots[j])}"
+                    )
+                    search.note(f"merged {pair} into {search.describe(cand)}")
+                    for gone in (slots[i], slots[j]):
+                        search.reject(
+                            gone,
+                            f"{pair} together replaced by "
+                            f"{search.describe(cand)}, fewer terms, as good a fit",
+                        )
+                    search.accept(trial_slots, trial)
+                    search.tried.add(cand)
+                    return True
+    return False
+
+
+def _forward_step(search: _Search) -> bool:
+    """Score every library candidate; add the best if it is significant."""
+    pool = [c for c in search.pool if c not in search.slots and c not in search.tried]
+    if not pool:
+        return False
+    f_vals, steps = search.engine.scores(search.fit, pool)
+    best = int(np.argmax(f_vals))
+    p_best = float(stats.f.sf(f_vals[best], 1, max(search.fit.dof - 1, 1)))
+    if p_best > search.alpha_term:
+        return False
+    slot = pool[best]
+    search.tried.add(slot)
+    trial = search.refit(
+        search.slots + [slot], [*search.fit.coefficients, steps[best]], search.fit
+    )
+    if not trial.ok:
+        search.reject(slot, f"its extended model cannot be fitted ({trial.message})")
+        return False
+    p = partial_f_p_value(search.fit, trial)
+    if p <= search.alpha_term:
+        search.accept(search.slots + [slot], trial)
+        search.note(f"added {search.describe(slot)} from the library (p = {p:.2g})")
+        return True
+    search.reject(
+        slot, f"score test suggested it, the fit did not confirm (p = {p:.2g})"
+    )
+    return False
+
+
+def confirm_terms(
+    engine: OutputErrorModel,
+    assumed: OutputErrorFit,
+    proposals,
+    start_values,
+    x_start,
+    alpha: float,
+    describe,
+    library_candidates=(),
+    progress=None,
+) -> Confirmation:
+    """Select correction terms by output-error tests (see module docstring).
+
+    Parameters
+    ----------
+    engine : OutputErrorModel
+        Fits of the record for any set of terms.
+    assumed : OutputErrorFit
+        Fit of the assumed model (no correction term).
+    proposals : list of (state, column), in the order to try them
+    start_values : list of float
+        Regression coefficient of each proposal (the starting value).
+    x_start : ndarray (N, n)
+        Starting trajectory of the first fit (the MME estimate).
+    describe : callable ``slot -> str`` for the log.
+    library_candidates : list of (state, column)
+        Every library function the forward search may add.
+    progress : callable ``str -> None``, optional
+    """
+    # Every term was picked from the whole library: each one must pass at the
+    # Bonferroni level, so that the chance of any false term stays ~alpha.
+    alpha_term = alpha / max(1, len(library_candidates), len(proposals))
+    search = _Search(
+        engine, assumed, alpha_term, describe, library_candidates, progress
+    )
+    proposals = [(int(i), int(c)) for i, c in proposals]
+    search.start(proposals, list(start_values), x_start)
+    search.tried = set(search.slots)
+    swap_checked = set()
+    for _ in range(MAX_ROUNDS):
+        changed = False
+        if search.slots and search.pool:
+            changed |= _swap_round(search, swap_checked)
+            if len(search.slots) > 1 and _merge_round(
+                search, _library_inputs(engine, search.fit)
+            ):
+                swap_checked.clear()  # the context changed: look again
+                changed = True
+        slots, fit, removed = search.backward(search.slots, search.fit)
+        for slot, p_val in removed:
+            search.reject(slot, f"not significant in the joint fit (p = {p_val:.2g})")
+            search.note(f"removed {describe(slot)} (p = {p_val:.2g})")
+            changed = True
+        if removed:
+            if slots:
+                search.accept(slots, fit)
+            else:
+                search.slots, search.fit = [], assumed
+        if search.pool and _forward_step(search):
+            changed = True
+        if not changed:
+            break
+    return _verdict(search, assumed, alpha)
+
+
+def _library_inputs(engine: OutputErrorModel, fit: OutputErrorFit):
+    """Library input ``z`` (states, then inputs) along the fitted trajectory."""
+    u = engine.inputs.grid()
+    return fit.x if u is None else np.hstack([fit.x, u])
+
+
+def _verdict(search: _Search, assumed: OutputErrorFit, alpha: float) -> Confirmation:
+    """The extended model against the assumed one: keep the terms or none."""
+    if not search.slots:
+        return Confirmation([], None, search.rejected, float("nan"), search.log)
+    fit = search.fit
+    p_total = partial_f_p_value(assumed, fit, n_added=len(search.slots))
+    if p_total > alpha:
+        search.rejected.extend(
+            (s, f"extended model not significant (p = {p_total:.2g})")
+            for s in search.slots
+        )
+        return Confirmation([], None, search.rejected, p_total, search.log)
+    return Confirmation(list(search.slots), fit, search.rejected, p_total, search.log)

@@ -1,0 +1,138 @@
+"""Step 5: the gain - how much closer to the measurements the fix simulates.
+
+Two numbers per measured channel, both simulation RMSEs against the data:
+
+* **in-sample** (the fitting record): each model's output-error fit, i.e.
+  its simulation from its own fitted initial state (and parameters). It is
+  labelled in-sample in every report: the extended model's terms were
+  chosen on this record.
+* **out-of-sample** (a validation record, when given), by the protocol the
+  system-identification benchmarks use: the initial state is estimated from
+  a short leading window only (``validation_window`` samples, default 50:
+  an output-error fit of the initial state on the window), then the model
+  runs free over the whole record, and the RMSE is taken over the samples
+  after the window. A model whose free run leaves the finite range (or a
+  bound of 1e6 times the data's scale) has no RMSE: the gain says where it
+  diverged instead of averaging over the rows that stayed finite.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.integrate import InputSignal, simulate
+
+__all__ = ["Gain", "FreeRun", "free_run", "rmse"]
+
+
+def rmse(y, y_hat) -> np.ndarray:
+    """RMSE per channel over observed samples; inf if a prediction is not finite."""
+    y = np.asarray(y, dtype=float)
+    y_hat = np.asarray(y_hat, dtype=float)
+    observed = np.isfinite(y)
+    out = np.empty(y.shape[1])
+    for j in range(y.shape[1]):
+        obs = observed[:, j]
+        pred = y_hat[obs, j]
+        out[j] = (
+            np.inf
+            if not np.all(np.isfinite(pred))
+            else float(np.sqrt(np.mean((y[obs, j] - pred) ** 2)))
+        )
+    return out
+
+
+@dataclass
+class FreeRun:
+    """A free-run simulation of one model on a validation record.
+
+    Attributes
+    ----------
+    x0 : ndarray (n,)
+        Initial state estimated from the leading window.
+    x : ndarray (N, n)
+        The simulation (NaN after a divergence).
+    rmse : ndarray (m,)
+        After the window; inf when the run diverged.
+    diverged_at : float or None
+        Time at which the run left the bound, if it did.
+    """
+
+    x0: np.ndarray
+    x: np.ndarray
+    rmse: np.ndarray
+    diverged_at: float | None = None
+
+
+@dataclass
+class Gain:
+    """How much closer to the measurements the extended model simulates.
+
+    RMSE per measured channel of the simulated measurement against the data:
+    in-sample on the fitting record (each model's own output-error fit), and
+    out-of-sample on the validation record (initial state from the leading
+    ``validation_window`` samples, then free simulation; RMSE after the
+    window). ``noise_floor = sqrt(R_jj)`` is what a perfect model reaches.
+    """
+
+    channel_names: list
+    rmse_assumed: np.ndarray
+    rmse_extended: np.ndarray
+    noise_floor: np.ndarray
+    validation_rmse_assumed: np.ndarray | None = None
+    validation_rmse_extended: np.ndarray | None = None
+    validation_window: int | None = None
+    notes: list = field(default_factory=list)
+
+    @property
+    def ratio(self) -> np.ndarray:
+        return _ratio(self.rmse_assumed, self.rmse_extended)
+
+    @property
+    def validation_ratio(self) -> np.ndarray | None:
+        if self.validation_rmse_assumed is None:
+            return None
+        return _ratio(self.validation_rmse_assumed, self.validation_rmse_extended)
+
+    def to_dict(self) -> dict:
+        def plain(a):
+            return [None if not np.isfinite(v) else float(v) for v in a]
+
+        out = {
+            "channels": list(self.channel_names),
+            "rmse_assumed": plain(self.rmse_assumed),
+            "rmse_extended": plain(self.rmse_extended),
+            "ratio": plain(self.ratio),
+            "noise_floor": plain(self.noise_floor),
+            "in_sample": True,
+        }
+        if self.validation_rmse_assumed is not None:
+            out["validation_rmse_assumed"] = plain(self.validation_rmse_assumed)
+            out["validation_rmse_extended"] = plain(self.validation_rmse_extended)
+            out["validation_ratio"] = plain(self.validation_ratio)
+            out["validation_window"] = self.validation_window
+        out["notes"] = list(self.notes)
+        return out
+
+
+def _ratio(a, b):
+    """``a / b``, NaN where either is not a finite positive number."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b) & (b > 0)
+    return np.where(ok, a / np.where(ok, b, 1.0), np.nan)
+
+
+def free_run(rhs, x0, t, inputs: InputSignal | None, substeps, measure, y, window):
+    """Simulate from ``x0`` over ``t``; RMSE of ``measure(x)`` after ``window``.
+
+    ``rhs(X (B, n), s, u (m,)) -> (B, n)``. The bound is 1e6 times the
+    larger of the data's and the initial state's magnitude.
+    """
+    scale = max(float(np.nanmax(np.abs(y))), float(np.max(np.abs(x0))), 1e-300)
+    sim = simulate(rhs, x0[None], t, inputs, substeps, bound=1e6 * scale)
+    x = sim.x[0]
+    at = int(sim.diverged_at[0])
+    err = rmse(y[window:], measure(x)[window:])
+    return FreeRun(x0=x0, x=x, rmse=err, diverged_at=None if at < 0 else float(t[at]))

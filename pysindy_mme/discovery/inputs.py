@@ -1,0 +1,335 @@
+"""Every argument of :func:`discover`, checked in one place, before any solve.
+
+:func:`check_study` turns what the user passed into a :class:`Study`: the
+data, the names, the noise covariance, an unfitted :class:`MME` that holds
+every estimator setting (built from the keywords, or the user's own
+``mme=``), the library, the optimizer and the validation record. The MME
+problem is checked here too (:meth:`MME.check`: shapes, observability, the
+first evaluation of the model), so a bad argument never waits for a solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.base import clone
+
+from ..core import validation as val
+from ..core.integrate import HOLDS, InputSignal
+from ..differentiation import MME
+
+__all__ = ["Study", "check_study", "MME_KEYWORDS"]
+
+#: discover's keywords that configure the estimator (also settable via mme=),
+#: with their defaults
+MME_KEYWORDS = {
+    "assumed_model": None,
+    "n_states": None,
+    "measured": None,
+    "noise_variance": None,
+    "error_states": None,
+    "W": "auto",
+    "error_model": "white",
+}
+
+
+@dataclass
+class Study:
+    """A checked study: everything :func:`discover`'s steps need.
+
+    Attributes
+    ----------
+    y : ndarray (N, m); t : ndarray (N,); u : ndarray (N, n_inputs) or None
+    inputs : InputSignal
+    mme : MME
+        Unfitted estimator with every setting (noise covariance resolved).
+    model : ModelFunction
+        The assumed model, checked.
+    n_states : int
+    measurement : ndarray (m, n) or callable
+    measured : ndarray of int or None
+        Measured state per channel (None for a general measurement).
+    error_states : ndarray of int
+    state_names, input_names, channel_names : list of str
+    noise_cov : ndarray (m, m)
+    library : unfitted pysindy feature library
+    optimizer : unfitted optimizer
+    alpha : float
+    refit : bool
+    validation : tuple (y, t, u) or None
+    assumed_equations : list of str or None
+    x_init : ndarray (N, n)
+        Starting trajectory from the data alone: measured states as measured
+        (interpolated over gaps), the others zero.
+    validation_window : int
+    """
+
+    y: np.ndarray
+    t: np.ndarray
+    u: np.ndarray | None
+    inputs: InputSignal
+    mme: MME
+    model: object
+    n_states: int
+    measurement: object
+    measured: np.ndarray | None
+    error_states: np.ndarray
+    state_names: list
+    input_names: list
+    channel_names: list
+    noise_cov: np.ndarray
+    library: object
+    optimizer: object
+    alpha: float
+    refit: bool
+    validation: tuple | None
+    assumed_equations: list | None
+    x_init: np.ndarray
+    validation_window: int = 50
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.input_names)
+
+    @property
+    def feature_names(self) -> list:
+        return self.state_names + self.input_names
+
+
+def _library(feature_library):
+    if feature_library is None:
+        import pysindy as ps
+
+        return ps.PolynomialLibrary(degree=3)
+    if not (hasattr(feature_library, "fit") and hasattr(feature_library, "transform")):
+        raise TypeError(
+            "feature_library must be a pysindy feature library, got "
+            f"{type(feature_library).__name__}"
+        )
+    return feature_library
+
+
+def _optimizer(optimizer):
+    if optimizer is None:
+        from ..optimizers import FloatingFStepwise
+
+        return FloatingFStepwise()
+    if not (hasattr(optimizer, "fit") and hasattr(optimizer, "get_params")):
+        raise TypeError(
+            f"optimizer must be a pysindy optimizer, got {type(optimizer).__name__}"
+        )
+    return optimizer
+
+
+def _estimator(mme, given: dict, u, input_hold):
+    """The user's MME, or one built from discover's keywords (not both)."""
+    if mme is not None:
+        if not isinstance(mme, MME):
+            raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
+        both = [
+            k
+            for k, v in given.items()
+            if not (
+                v is MME_KEYWORDS[k] or (isinstance(v, str) and v == MME_KEYWORDS[k])
+            )
+        ]
+        if both:
+            raise ValueError(
+                f"give {', '.join(both)} either to MME (mme=...) or to discover, "
+                "not both"
+            )
+        est = clone(mme)
+        if u is not None:
+            est.set_params(u=u)
+        return est
+    for name in ("assumed_model", "n_states", "noise_variance"):
+        if given[name] is None:
+            raise TypeError(f"discover() needs {name}= (or mme=MME(...))")
+    noise = given["noise_variance"]
+    if isinstance(noise, str) and noise != "auto":
+        raise ValueError(
+            f"noise_variance must be a number, an array or 'auto', got {noise!r}"
+        )
+    return MME(u=u, input_hold=input_hold, **given)
+
+
+def _names(feature_names, n_states, n_inputs):
+    if feature_names is None:
+        feature_names = [f"x{i}" for i in range(n_states)] + [
+            f"u{i}" for i in range(n_inputs)
+        ]
+    feature_names = [str(n) for n in feature_names]
+    if len(feature_names) != n_states + n_inputs:
+        raise ValueError(
+            f"feature_names has {len(feature_names)} names but there are {n_states} "
+            f"states and {n_inputs} inputs"
+        )
+    if len(set(feature_names)) != len(feature_names):
+        raise ValueError(f"feature_names repeats a name: {feature_names}")
+    return feature_names[:n_states], feature_names[n_states:]
+
+
+def _validation(validation, m, n_inputs):
+    if validation is None:
+        return None
+    if not isinstance(validation, (tuple, list)) or len(validation) not in (2, 3):
+        raise TypeError("validation must be a tuple (y, t) or (y, t, u)")
+    y_v = val.as_float_array(validation[0], "validation y", ndim=(1, 2), allow_nan=True)
+    if y_v.ndim == 1:
+        y_v = y_v[:, None]
+    if y_v.shape[1] != m:
+        raise ValueError(
+            f"validation y has {y_v.shape[1]} columns but {m} channels are measured"
+        )
+    t_v = val.check_time(validation[1], y_v.shape[0], "validation t")
+    u_v = None
+    if n_inputs:
+        if len(validation) != 3:
+            raise ValueError("validation must be (y, t, u): the model has inputs")
+        u_v = val.as_float_array(validation[2], "validation u", ndim=(1, 2))
+        u_v = u_v.reshape(y_v.shape[0], -1)
+    return y_v, t_v, u_v
+
+
+def _inputs_array(u, n_samples):
+    if u is None:
+        return None
+    u = val.as_float_array(u, "u", ndim=(1, 2))
+    if u.ndim == 1:
+        u = u[:, None]
+    if u.shape[0] != n_samples:
+        raise ValueError(f"u has {u.shape[0]} rows but y has {n_samples} samples")
+    return u
+
+
+def _count_inputs(u, t) -> int:
+    if u is None:
+        return 0
+    if callable(u):
+        return int(np.asarray(u(t[:1]), dtype=float).reshape(1, -1).shape[1])
+    return int(np.asarray(u, dtype=float).reshape(t.size, -1).shape[1])
+
+
+def _check_size(library, y, n_vars):
+    """The library size bounds what a record can support: fail now, not later."""
+    probe = np.zeros((min(y.shape[0], 8), n_vars)) + 0.5
+    n_features = np.asarray(clone(library).fit(probe).transform(probe)).shape[1]
+    n_finite = int(np.sum(np.all(np.isfinite(y), axis=1)))
+    needed = n_features + 2
+    if n_finite < needed:
+        raise ValueError(
+            f"y has {n_finite} complete samples but the feature library has "
+            f"{n_features} terms: at least {needed} samples are needed"
+        )
+
+
+def check_study(
+    y,
+    t,
+    *,
+    mme=None,
+    feature_library=None,
+    optimizer=None,
+    feature_names=None,
+    u=None,
+    validation=None,
+    alpha=0.01,
+    refit=True,
+    assumed_equations=None,
+    input_hold="linear",
+    validation_window=50,
+    **mme_keywords,
+) -> Study:
+    """Check :func:`discover`'s arguments; see there for their meaning."""
+    y = val.as_float_array(y, "y", ndim=(1, 2), allow_nan=True)
+    if y.ndim == 1:
+        y = y[:, None]
+    if np.all(np.isnan(y)):
+        raise ValueError("y contains no finite measurement")
+    n_samples = y.shape[0]
+    t = val.check_time(t, n_samples, "t")
+    alpha = val.check_probability(alpha, "alpha")
+    if not isinstance(refit, (bool, np.bool_)):
+        raise TypeError(f"refit must be True or False, got {refit!r}")
+    if input_hold not in HOLDS:
+        raise ValueError(f"input_hold must be 'linear' or 'zoh', got {input_hold!r}")
+    u = _inputs_array(u, n_samples)
+    est = _estimator(mme, mme_keywords, u, input_hold)
+    n_states = est.n_states
+    if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
+        raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
+    if n_states < 1:
+        raise ValueError(f"n_states must be a positive integer, got {n_states}")
+    if est.measured is not None:
+        idx = val.check_indices(est.measured, n_states, "measured")
+        if y.shape[1] != idx.size:
+            raise ValueError(
+                f"y has {y.shape[1]} columns but measured names {idx.size} states "
+                f"({idx.tolist()})"
+            )
+    if est.error_states is not None:
+        val.check_indices(est.error_states, n_states, "error_states")
+    if est.error_model not in ("white", "random_walk"):
+        raise ValueError(
+            f"error_model must be 'white' or 'random_walk', got {est.error_model!r}"
+        )
+    u_est = est.u if u is None else u
+    n_inputs = _count_inputs(u_est, t)
+    state_names, input_names = _names(feature_names, int(n_states), n_inputs)
+    library = _library(feature_library)
+    optimizer = _optimizer(optimizer)
+    validation = _validation(validation, y.shape[1], n_inputs)
+    if assumed_equations is not None and len(assumed_equations) != n_states:
+        raise ValueError(
+            f"assumed_equations has {len(assumed_equations)} entries, expected "
+            f"{n_states} (one per state)"
+        )
+    window = validation_window
+    if (
+        isinstance(window, bool)
+        or not isinstance(window, (int, np.integer))
+        or window < 2
+    ):
+        raise ValueError(f"validation_window must be an integer >= 2, got {window!r}")
+    _check_size(library, y, n_states + n_inputs)
+    problem = est.check(y, t, u_est)  # shapes, observability, first evaluation
+    est.set_params(noise_variance=problem.noise_covariance)  # 'auto' resolved once
+    measured = None
+    channel_names = [f"y{j}" for j in range(y.shape[1])]
+    if est.measured is not None or (
+        est.measurement_matrix is None and est.measurement_function is None
+    ):
+        measured = val.check_indices(
+            est.measured if est.measured is not None else range(n_states),
+            n_states,
+            "measured",
+        )
+        channel_names = [state_names[i] for i in measured]
+    u_grid = None if u_est is None else np.asarray(problem.smoother.u_grid(), float)
+    return Study(
+        y=problem.y,
+        t=problem.t,
+        u=u_grid,
+        inputs=InputSignal(u_est, problem.t, input_hold),
+        mme=est,
+        model=problem.model,
+        n_states=int(n_states),
+        measurement=problem.measurement,
+        measured=measured,
+        error_states=np.asarray(problem.error_states, dtype=int),
+        state_names=state_names,
+        input_names=input_names,
+        channel_names=channel_names,
+        noise_cov=np.asarray(problem.noise_covariance, dtype=float),
+        library=library,
+        optimizer=optimizer,
+        alpha=alpha,
+        refit=bool(refit),
+        validation=validation,
+        assumed_equations=None
+        if assumed_equations is None
+        else list(assumed_equations),
+        x_init=problem.smoother.initial_guess()[0][:, : int(n_states)],
+        validation_window=int(window),
+    )

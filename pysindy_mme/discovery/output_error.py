@@ -1,0 +1,460 @@
+"""Output error: fit a model's parameters to the measurements themselves.
+
+The regression of the MME model error on library functions is biased (the
+estimator shrinks ``d(t)``) and its F-ratios are inflated (``d(t)`` is
+smooth). Measurements carry white noise of known covariance, so the unbiased
+fit and valid tests compare the model's *trajectory* with the data:
+
+    minimise  sum_k (y_k - g(x_k) - o)^T R^-1 (y_k - g(x_k) - o)
+    subject to x_{k+1} = Phi_k(x_k; p, c)
+
+over the states, the assumed model's physical parameters ``p``, the
+correction coefficients ``c`` and measurement offsets ``o``.
+
+How, and why this way (measured, see ``benchmarks/bench_long_records.py``):
+the dynamics are imposed by **direct transcription**, every sample interval a
+shooting segment, through the same banded KKT solver as MME
+(:class:`~pysindy_mme.differentiation.MMESmoother` with hard constraints and
+the parameters bordering the band). Single shooting (one simulation from
+``x0``, finite-difference Jacobians from ``n_params + 1`` simulations)
+costs a Python loop per sample and, over many periods or a chaotic record,
+has a cost surface full of local minima: on the paper's Van der Pol case
+over 1,000 s it converged to a wrong model. Transcription started from the
+MME state estimate keeps every interval close to the data while the
+continuity conditions close, its sensitivities are exact (variational
+equations of the RK4 map), its Python loops run over RK4 stages only, and
+its cost grows linearly with the record. At convergence the defects are at
+rounding level, so the trajectory is the model's simulation from its fitted
+initial state.
+
+Statistics: the covariance of the parameters is ``s^2 Sc^-1``, ``Sc`` the
+reduced Hessian from the bordered KKT system (equilibrated before it is
+inverted, so parameters of any scale are handled), ``s^2 = cost / dof``.
+A candidate term's score test (the partial F it would have, linearised)
+comes from the same factorisation: its one-interval sensitivities ``B`` are
+the forcing of one extra solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..core.integrate import InputSignal
+from ..core.model import ParametricModel
+from ..differentiation.kkt import equilibrated_inverse, solve_reduced
+from ..differentiation.transcription import MMESmoother
+from ..exceptions import DivergenceError
+
+__all__ = ["OutputErrorFit", "OutputErrorModel"]
+
+# Candidate sensitivities per solve: n_samples * n_states * group <= this.
+_SCORE_ELEMENTS = 1 << 22
+
+
+@dataclass
+class OutputErrorFit:
+    """One output-error fit.
+
+    Attributes
+    ----------
+    slots : tuple of (state, column)
+        The correction terms, in the order of ``coefficients``.
+    theta : ndarray
+        ``[physical parameters, coefficients, offsets]``.
+    x : ndarray (N, n)
+        Fitted trajectory (the model's simulation from ``x[0]``).
+    cost : float
+        Whitened residual sum of squares ``sum r^T R^-1 r``.
+    n_residuals : int
+        Observed measurement values.
+    n_free : int
+        Fitted quantities: initial state + parameters.
+    covariance : ndarray (p, p)
+        ``s^2 Sc^-1`` with ``s^2 = cost / dof`` (NaN if not identifiable).
+    x0_covariance : ndarray (n, n)
+        Covariance of the fitted initial state ``x[0]``, likewise.
+    converged : bool
+        Gauss-Newton converged and every trajectory stayed finite.
+    message : str
+    rank_deficient : bool
+        Some combination of parameters is not determined by the data.
+    n_iter : int
+    """
+
+    slots: tuple
+    theta: np.ndarray
+    x: np.ndarray
+    cost: float
+    n_residuals: int
+    n_free: int
+    covariance: np.ndarray
+    converged: bool
+    message: str
+    rank_deficient: bool
+    n_iter: int
+    n_physical: int = 0
+    n_offsets: int = 0
+    x0_covariance: np.ndarray | None = None
+    _state: object = None
+
+    @property
+    def dof(self) -> int:
+        return max(self.n_residuals - self.n_free, 1)
+
+    @property
+    def ok(self) -> bool:
+        """A usable fit: finite cost (it may still not have converged)."""
+        return bool(np.isfinite(self.cost))
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        a = self.n_physical
+        return self.theta[a : a + len(self.slots)]
+
+    @property
+    def physical(self) -> np.ndarray:
+        return self.theta[: self.n_physical]
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return self.theta[self.n_physical + len(self.slots) :]
+
+    @property
+    def std_errors(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    def coefficient_p_values(self) -> np.ndarray:
+        """Two-sided Wald p-values of the coefficients (1 where undefined)."""
+        a = self.n_physical
+        se = self.std_errors[a : a + len(self.slots)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = 2 * stats.t.sf(np.abs(self.coefficients / se), self.dof)
+        return np.where(np.isfinite(p) & (se > 0), p, 1.0)
+
+    def confidence_intervals(self, level: float = 0.95) -> np.ndarray:
+        half = stats.t.ppf(0.5 + level / 2.0, self.dof) * self.std_errors
+        return np.column_stack([self.theta - half, self.theta + half])
+
+    def bic(self) -> float:
+        """Bayesian information criterion (up to a constant)."""
+        n_terms = len(self.slots)
+        return self.cost + n_terms * np.log(max(self.n_residuals, 2))
+
+
+class OutputErrorModel:
+    """Output-error fits of one record for any set of correction terms.
+
+    Parameters
+    ----------
+    base : callable ``(x, t, u, p) -> dx/dt``
+        The assumed model (vectorised, unchecked) with its physical
+        parameters ``p``.
+    n_states, n_physical : int
+    features : callable ``(z, columns) -> values`` (library columns)
+    y, t : measurements and times
+    inputs : InputSignal or None
+    R : ndarray (m, m)
+    measurement : ndarray (m, n) or callable
+    n_offsets : int
+        0, or ``m``: a constant offset per measured channel.
+    n_substeps : int
+        RK4 steps per sample interval.
+    """
+
+    def __init__(
+        self,
+        base,
+        n_states,
+        features,
+        y,
+        t,
+        inputs,
+        R,
+        measurement,
+        n_physical=0,
+        n_offsets=0,
+        n_substeps=1,
+    ):
+        self.base = base
+        self.n_states = int(n_states)
+        self.n_physical = int(n_physical)
+        self.n_offsets = int(n_offsets)
+        self.features = features
+        self.y = np.asarray(y, dtype=float)
+        self.t = np.asarray(t, dtype=float)
+        self.inputs = (
+            inputs if isinstance(inputs, InputSignal) else InputSignal(inputs, self.t)
+        )
+        self.R = np.asarray(R, dtype=float)
+        self.measurement = measurement
+        self.n_substeps = int(n_substeps)
+        self.n_residuals = int(np.isfinite(self.y).sum())
+
+    # ----------------------------------------------------------------- setup
+    def _solver(self, slots, theta0, max_iter):
+        model = ParametricModel(
+            self.base,
+            self.n_states,
+            self.n_physical,
+            self.features,
+            slots,
+            n_extra=self.n_offsets,
+        )
+        m = self.y.shape[1]
+        offsets = None
+        if self.n_offsets:
+            offsets = np.zeros((m, model.n_params))
+            offsets[:, model.n_params - self.n_offsets :] = np.eye(m)
+        return MMESmoother(
+            model,
+            self.y,
+            self.t,
+            self.R,
+            [],
+            self.measurement,
+            u=self.inputs,
+            n_substeps=self.n_substeps,
+            max_iter=max_iter,
+            tol=1e-10,
+            theta_init=theta0,
+            measurement_offsets=offsets,
+        )
+
+    def fit(self, slots, theta0, x_start, max_iter: int = 50) -> OutputErrorFit:
+        """Fit the initial state and ``theta`` from a starting trajectory.
+
+        A fit whose model blows up along the way, or cannot be linearised,
+        is returned with an infinite cost and ``converged=False`` (its
+        message says why), so that callers reject it instead of crashing.
+        """
+        slots = tuple((int(i), int(c)) for i, c in slots)
+        theta0 = np.asarray(theta0, dtype=float)
+        solver = self._solver(slots, theta0, max_iter)
+        try:
+            res = solver.solve(None, solver.start_from(x_start, theta0))
+        except (DivergenceError, np.linalg.LinAlgError, FloatingPointError) as exc:
+            return self._failed(slots, theta0, x_start, f"model diverged: {exc}")
+        bounded = np.all(np.isfinite(res.x)) and res.max_defect <= 1e-6 * max(
+            1.0, float(np.max(np.abs(res.x)))
+        )
+        converged = bool(res.converged and bounded)
+        message = (
+            res.message
+            if bounded
+            else (
+                f"{res.message}; the trajectory does not follow the model "
+                f"(largest defect {res.max_defect:.3g})"
+            )
+        )
+        fit = OutputErrorFit(
+            slots=slots,
+            theta=res.theta,
+            x=res.x,
+            cost=float(res.measurement_cost),
+            n_residuals=self.n_residuals,
+            n_free=self.n_states + res.theta.size,
+            covariance=np.full((res.theta.size,) * 2, np.nan),
+            converged=converged,
+            message=message,
+            rank_deficient=res.rank_deficient,
+            n_iter=res.n_iter,
+            n_physical=self.n_physical,
+            n_offsets=self.n_offsets,
+            _state=(solver, res),
+        )
+        fit.covariance, fit.x0_covariance = self._covariance(fit)
+        return fit
+
+    def fit_held(self, slots, theta, x_start, max_iter: int = 50) -> OutputErrorFit:
+        """Fit the initial state only, the parameters held at ``theta``.
+
+        The returned fit reports ``theta`` with an undefined (NaN) covariance.
+        """
+        slots = tuple((int(i), int(c)) for i, c in slots)
+        theta = np.asarray(theta, dtype=float)
+        model = ParametricModel(
+            self.base,
+            self.n_states,
+            self.n_physical,
+            self.features,
+            slots,
+            n_extra=self.n_offsets,
+        )
+
+        def base(x, t, u, p):
+            return model(x, t, u, theta)
+
+        held = OutputErrorModel(
+            base,
+            self.n_states,
+            self.features,
+            self.y,
+            self.t,
+            self.inputs,
+            self.R,
+            self.measurement,
+            n_substeps=self.n_substeps,
+        )
+        fit = held.fit((), np.zeros(0), x_start, max_iter=max_iter)
+        return OutputErrorFit(
+            slots=slots,
+            theta=theta,
+            x=fit.x,
+            cost=fit.cost,
+            n_residuals=fit.n_residuals,
+            n_free=fit.n_free,
+            covariance=np.full((theta.size, theta.size), np.nan),
+            converged=fit.converged,
+            message=fit.message + " (parameters held)",
+            rank_deficient=False,
+            n_iter=fit.n_iter,
+            n_physical=self.n_physical,
+            n_offsets=self.n_offsets,
+        )
+
+    def _failed(self, slots, theta0, x_start, message):
+        p = theta0.size
+        n = self.n_states
+        return OutputErrorFit(
+            slots=slots,
+            theta=theta0,
+            x=np.asarray(x_start, dtype=float),
+            cost=np.inf,
+            n_residuals=self.n_residuals,
+            n_free=self.n_states + p,
+            covariance=np.full((p, p), np.nan),
+            converged=False,
+            message=message,
+            rank_deficient=False,
+            n_iter=0,
+            n_physical=self.n_physical,
+            n_offsets=self.n_offsets,
+            x0_covariance=np.full((n, n), np.nan),
+        )
+
+    # ------------------------------------------------------------ statistics
+    def _kkt_at(self, fit):
+        solver, res = fit._state
+        return solver, res, solver.kkt_system(res._lin)
+
+    def _covariance(self, fit):
+        """``s^2 Sc^-1`` and the initial state's covariance, at the solution.
+
+        The inverse of the bordered KKT matrix holds, in its parameter block,
+        ``Sc^-1`` and, in the ``x_0`` block, the covariance of the initial
+        state (both in units of the Hessian of ``J / 2``): ``n`` extra solves.
+        A direction the data do not determine gets NaN.
+        """
+        p, n = fit.theta.size, self.n_states
+        nan = (np.full((p, p), np.nan), np.full((n, n), np.nan))
+        if fit._state is None:
+            return nan
+        try:
+            solver, res, (fac, _, _, E, D) = self._kkt_at(fit)
+        except np.linalg.LinAlgError:
+            return nan
+        unit = solver.unit
+        b = np.zeros((solver.N, 2 * n, n))
+        b[0, :n, :] = np.eye(n)
+        sol = solve_reduced(fac, E, D, b, np.zeros((p, n)))
+        s2 = fit.cost / fit.dof
+        x0_cov = sol.z[0, :n, :] * s2 * unit**2  # internal units -> user units
+        x0_cov = 0.5 * (x0_cov + x0_cov.T)
+        if not p:
+            return np.zeros((0, 0)), x0_cov
+        inverse, deficient = equilibrated_inverse(sol.Sc)
+        cov = inverse * s2
+        if deficient:
+            # a direction the data do not determine: its variance is unknown
+            bad = np.diag(cov) <= 0
+            cov[bad, :] = np.nan
+            cov[:, bad] = np.nan
+            fit.rank_deficient = True
+        return cov, x0_cov
+
+    def scores(self, fit: OutputErrorFit, candidates):
+        """Linearised partial F (and a first step) for adding each candidate.
+
+        The response of the fitted trajectory to one unit of a new
+        coefficient, with everything already in the model re-optimised, is
+        the solution of the KKT system forced by that term's one-interval
+        sensitivities; its projection on the residual is the score. Returns
+        ``(f_values, steps)``; 0 for candidates whose values are not finite.
+        """
+        k_c = len(candidates)
+        zeros = np.zeros(k_c)
+        if not k_c or fit._state is None or not np.isfinite(fit.cost):
+            return zeros, zeros
+        try:
+            solver, res, (fac, _, _, E, D) = self._kkt_at(fit)
+        except np.linalg.LinAlgError:
+            return zeros, zeros
+        n, N = solver.n, solver.N
+        lin = res._lin
+        group = max(1, _SCORE_ELEMENTS // max(N * n, 1))
+        num = np.zeros(k_c)
+        den = np.zeros(k_c)
+        for lo in range(0, k_c, group):
+            part = candidates[lo : lo + group]
+            sens, finite = self._candidate_sensitivities(solver, res, part)
+            rhs = np.zeros((N, 2 * n, len(part)))
+            rhs[:-1, n:] = -sens
+            sol = solve_reduced(fac, E, D, rhs, np.zeros((E.shape[2], len(part))))
+            dx = sol.z[:, :n]  # (N, n, G)
+            H = lin.H
+            dy = (
+                np.einsum("ai,kig->kag", H, dx)
+                if H.ndim == 2
+                else (np.einsum("kai,kig->kag", H, dx))
+            )
+            if solver.p:
+                dy = dy + np.einsum("ap,pg->ag", solver._M, sol.dtheta)[None]
+            Rdy = np.einsum("kab,kbg->kag", solver.Rinv, dy)
+            num[lo : lo + len(part)] = np.einsum("kag,ka->g", Rdy, lin.r)
+            den[lo : lo + len(part)] = np.einsum("kag,kag->g", Rdy, dy)
+            # a term not finite along the trajectory cannot be scored
+            num[lo : lo + len(part)][~finite] = np.nan
+        ssr = fit.cost
+        dof = max(fit.dof - 1, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            usable = (
+                np.isfinite(num) & np.isfinite(den) & (den > 1e-12 * max(ssr, 1e-300))
+            )
+            dssr = np.where(usable, num**2 / np.where(usable, den, 1.0), 0.0)
+            f_values = dssr / np.maximum(ssr - dssr, 1e-300) * dof
+            step = np.where(usable, num / np.where(usable, den, 1.0), 0.0)
+        return np.nan_to_num(f_values), np.nan_to_num(step)
+
+    def _candidate_sensitivities(self, solver, res, candidates):
+        """One-interval sensitivities ``dPhi_k / dc`` of candidate terms at 0.
+
+        Returns ``(sens (N-1, n, G), finite (G,))``; a candidate with a
+        non-finite value anywhere along the trajectory is not finite.
+        """
+        cols = sorted({c for _, c in candidates})
+        pos = {c: k for k, c in enumerate(cols)}
+        n = self.n_states
+        unit = solver.unit
+
+        def forcing(z, s, u):
+            zz = unit * z
+            zz = zz if u is None else np.hstack([zz, u])
+            with np.errstate(all="ignore"):
+                phi = self.features(zz, cols)
+            out = np.zeros((z.shape[0], n, len(candidates)))
+            for j, (state, col) in enumerate(candidates):
+                out[:, state, j] = phi[:, pos[col]]
+            return out / unit
+
+        x_int = res.x / unit
+        d = np.zeros((solver.N - 1, 0))
+        with np.errstate(all="ignore"):
+            *_, sens = solver.flow(
+                x_int, d, res.theta, jacobian=True, extra=(len(candidates), forcing)
+            )
+        finite = np.all(np.isfinite(sens), axis=(0, 1))
+        sens[:, :, ~finite] = 0.0
+        return sens, finite

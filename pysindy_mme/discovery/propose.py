@@ -1,0 +1,216 @@
+"""Step 3: propose correction terms by regressing ``d(t)`` on the library.
+
+The library is evaluated on MME's state estimate (and the inputs); the
+optimizer (:class:`~pysindy_mme.FloatingFStepwise` by default) regresses the
+model error of each error state on it. Its terms are *proposals*: the
+output-error confirmation (step 4) settles them on the measurements.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.base import clone
+
+from ..core.features import SelectedFeatures
+
+__all__ = ["Proposals", "propose_terms"]
+
+
+@dataclass
+class Proposals:
+    """What the regression of ``d(t)`` proposes.
+
+    Attributes
+    ----------
+    library : fitted pysindy feature library
+    feature_names : list of str
+        Names of the library's columns.
+    features : SelectedFeatures
+        Fast evaluation of any library column at new points.
+    optimizer : fitted optimizer
+    coefficients : ndarray (n_states, n_features)
+        Regression coefficients (rows of non-error states are zero).
+    intercepts : ndarray (n_states,)
+        The optimizer's own constant (when the library has none).
+    slots : list of (state, column)
+        Proposed terms, strongest evidence first per state; column
+        ``n_features`` stands for the optimizer's intercept (see
+        :attr:`constant_column`).
+    start_values : list of float
+        Their regression coefficients.
+    candidates : list of (state, column)
+        Every library function the confirmation may add (finite columns of
+        every error state, plus a constant when the library has none).
+    singular : dict
+        ``{column: reason}``: library functions that are not finite, or
+        singular, along the estimated trajectory. Simulating a model with
+        them is ill-posed: they are neither proposed nor offered.
+    nonsmooth : dict
+        ``{column: reason}``: functions that jump where the trajectory
+        crosses zero (``sign(v)``). Allowed (friction is real), but reported:
+        RK4 loses accuracy at the jumps.
+    rejected : list of (slot, reason)
+        Proposals set aside before confirmation (singular functions).
+    """
+
+    library: object
+    feature_names: list
+    features: SelectedFeatures
+    optimizer: object
+    coefficients: np.ndarray
+    intercepts: np.ndarray
+    slots: list
+    start_values: list
+    candidates: list
+    singular: dict
+    nonsmooth: dict
+    rejected: list
+
+    @property
+    def constant_column(self) -> int:
+        """The slot column that stands for a constant outside the library."""
+        return len(self.feature_names)
+
+    def name(self, column: int) -> str:
+        return "1" if column == self.constant_column else self.feature_names[column]
+
+    def evaluate(self, z, columns):
+        """Library columns (the constant slot included) at ``z``."""
+        lib = [c for c in columns if c != self.constant_column]
+        values = (
+            self.features(z, [int(c) for c in lib]) if lib else np.zeros((len(z), 0))
+        )
+        if len(lib) == len(columns):
+            return values
+        out = np.ones((len(z), len(columns)))
+        out[:, [k for k, c in enumerate(columns) if c != self.constant_column]] = values
+        return out
+
+    def candidate_terms(self, state_names) -> dict:
+        """``{state: {feature: regression coefficient}}`` of the proposals."""
+        out = {}
+        for (i, c), v in zip(self.slots, self.start_values):
+            out.setdefault(state_names[i], {})[self.name(c)] = float(v)
+        return out
+
+
+def _accepts_names(optimizer) -> bool:
+    """Whether ``optimizer.fit`` takes ``feature_names`` (FloatingFStepwise)."""
+    try:
+        return "feature_names" in inspect.signature(optimizer.fit).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _entry_order(opt, target, coef_row, theta):
+    """Columns of ``coef_row``'s support, strongest evidence first.
+
+    For FloatingFStepwise the order of their last entry in ``steps_``; for
+    other optimizers the size of the standardised coefficient.
+    """
+    support = [int(j) for j in np.flatnonzero(coef_row)]
+    steps = getattr(opt, "steps_", None)
+    if steps:
+        entered = {}
+        for step in steps[target]:
+            if step.action == "add":
+                entered[int(step.feature)] = step.iteration
+        return sorted(support, key=lambda j: (entered.get(j, np.inf), j))
+    with np.errstate(all="ignore"):
+        scale = np.nanstd(theta[:, support], axis=0) if support else []
+    strength = [abs(coef_row[j]) * s for j, s in zip(support, scale)]
+    return [support[k] for k in np.argsort(strength)[::-1]]
+
+
+def flag_library_columns(theta):
+    """Library functions unfit for simulation along the estimated trajectory.
+
+    Non-finite values (a division by a state that reaches zero), a range so
+    wide it is a singularity in all but name (``max |f| > 1e6 median |f|``),
+    and jumps (a function that is not continuous where the trajectory crosses
+    zero, like ``sign(v)``: an increment between consecutive samples larger
+    than half the function's whole range) are flagged with a reason.
+
+    Returns ``(singular, nonsmooth)``, two ``{column: reason}`` dicts.
+    """
+    flags, nonsmooth = {}, {}
+    with np.errstate(all="ignore"):
+        for j in range(theta.shape[1]):
+            col = theta[:, j]
+            if not np.all(np.isfinite(col)):
+                flags[j] = "not finite along the estimated trajectory (singular)"
+                continue
+            mag = np.abs(col)
+            med = float(np.median(mag))
+            if med > 0 and float(mag.max()) > 1e6 * med:
+                flags[j] = (
+                    f"singular along the estimated trajectory (largest value "
+                    f"{mag.max():.3g}, typical {med:.3g})"
+                )
+                continue
+            span = float(np.ptp(col))
+            if span > 0 and col.size > 2:
+                steps = np.abs(np.diff(col))
+                rare = np.sum(steps > 0.25 * span) < 0.2 * col.size
+                if float(steps.max()) > 0.5 * span and rare:
+                    nonsmooth[j] = "not smooth: it jumps between consecutive samples"
+    return flags, nonsmooth
+
+
+def propose_terms(study, x_hat, d_hat) -> Proposals:
+    """Regress ``d_hat`` of the error states on the library at ``x_hat``."""
+    z_hat = x_hat if study.u is None else np.hstack([x_hat, study.u])
+    library = clone(study.library).fit(z_hat)
+    with np.errstate(all="ignore"):
+        theta = np.asarray(library.transform(z_hat))
+    names = list(library.get_feature_names(study.feature_names))
+    opt = clone(study.optimizer)
+    es = study.error_states
+    targets = [study.state_names[i] for i in es]
+    if _accepts_names(opt):
+        opt.fit(theta, d_hat[:, es], feature_names=names, target_names=targets)
+    else:
+        opt.fit(theta, d_hat[:, es])
+    n = study.n_states
+    coef = np.zeros((n, theta.shape[1]))
+    coef[es] = np.asarray(opt.coef_).reshape(es.size, -1)
+    intercept = np.zeros(n)
+    intercept[es] = np.broadcast_to(
+        np.asarray(getattr(opt, "intercept_", 0.0), dtype=float), (es.size,)
+    )
+    const = theta.shape[1]
+    singular, nonsmooth = flag_library_columns(theta)
+    slots, start, rejected = [], [], []
+    for k, i in enumerate(es):
+        for j in _entry_order(opt, k, coef[i], theta):
+            if j in singular:
+                rejected.append(((int(i), int(j)), singular[j]))
+                continue
+            slots.append((int(i), int(j)))
+            start.append(float(coef[i, j]))
+        if intercept[i] != 0:
+            slots.append((int(i), const))
+            start.append(float(intercept[i]))
+    usable = [j for j in range(theta.shape[1]) if j not in singular]
+    has_constant = any(np.ptp(theta[:, j]) == 0 and theta[0, j] != 0 for j in usable)
+    candidates = [
+        (int(i), j) for i in es for j in usable + ([] if has_constant else [const])
+    ]
+    features = SelectedFeatures(library, study.feature_names, range(const), z_hat)
+    return Proposals(
+        library=library,
+        feature_names=names,
+        features=features,
+        optimizer=opt,
+        coefficients=coef,
+        intercepts=intercept,
+        slots=slots,
+        start_values=start,
+        candidates=candidates,
+        singular=singular,
+        nonsmooth=nonsmooth,
+        rejected=rejected,
+    )

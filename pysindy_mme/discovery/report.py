@@ -1,0 +1,221 @@
+"""Plain-text report of a Discovery: what is wrong, the cause, the fix, the gain.
+
+Numbers are printed by significant digits (:mod:`pysindy_mme.core.tables`);
+a statistic that is not finite or not determined prints as ``n/a``; the
+consistency test, the correction test and the text share one verdict.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.tables import p_value, sig, signed, text_table
+
+__all__ = ["format_discovery"]
+
+
+def _header(res) -> list:
+    t = res.t
+    noise = ", ".join(sig(v, 3) for v in np.diag(res.noise_cov))
+    inputs = f"; inputs: {', '.join(res.input_names)}" if res.input_names else ""
+    return [
+        "pysindy-mme discovery report",
+        "=" * 28,
+        f"Data: {t.size} samples over t = {sig(t[0])} .. {sig(t[-1])}; measured: "
+        f"{', '.join(res.channel_names)}; states: {', '.join(res.state_names)}"
+        + inputs,
+        f"Measurement noise variance: {noise}",
+        f"Verdict: {res.verdict}.",
+        "",
+    ]
+
+
+def _what_is_wrong(res) -> list:
+    out = ["1. What the assumed model gets wrong", "-" * 36]
+    g = res.gain
+    measure = res.study.measurement
+    x = res.assumed_simulation
+    y_hat = measure(x) if callable(measure) else x @ np.asarray(measure).T
+    resid = res.y - y_hat
+    rows = []
+    for j, name in enumerate(res.channel_names):
+        r = resid[:, j]
+        finite = np.isfinite(r)
+        worst = (
+            int(np.nanargmax(np.abs(np.where(finite, r, np.nan))))
+            if finite.any()
+            else 0
+        )
+        rows.append(
+            [
+                name,
+                sig(g.rmse_assumed[j]),
+                sig(g.noise_floor[j]),
+                sig(g.rmse_assumed[j] / g.noise_floor[j], 3) + "x",
+                f"{signed(r[worst], 3)} at t = {sig(res.t[worst], 3)}",
+            ]
+        )
+    out.append(
+        "Simulation of the assumed model (initial state fitted) against the data:"
+    )
+    out.append(
+        text_table(["channel", "RMSE", "noise", "RMSE/noise", "largest error"], rows)
+    )
+    contradicted = res.consistency_p_value < res.alpha
+    verdict = (
+        "the data CONTRADICT the assumed model"
+        if contradicted
+        else "the data are consistent with the assumed model"
+    )
+    out.append(
+        f"Consistency test: chi2 = {sig(res.consistency_chi2)} on "
+        f"{res.consistency_dof} dof, p = {p_value(res.consistency_p_value)} -> "
+        f"{verdict} (alpha = {res.alpha})."
+    )
+    ratio = ", ".join(sig(v, 4) for v in np.atleast_1d(res.mme.covariance_ratio_))
+    w = np.asarray(res.mme.W_, dtype=float)
+    w_text = (
+        sig(float(w.ravel()[0])) if w.size == 1 else np.array2string(w, precision=4)
+    )
+    out.append(
+        f"MME estimate of the model error d(t): W = {w_text}, "
+        f"measurement-minus-estimate covariance / noise = {ratio}."
+    )
+    rows = [
+        [name, sig(s["rms_d"]), sig(s["rms_dynamics"]), f"{sig(100 * s['share'], 3)}%"]
+        for name, s in res.d_summary.items()
+    ]
+    out.append(text_table(["state", "rms d(t)", "rms dx/dt", "share missed"], rows))
+    return out + [""]
+
+
+def _terms_text(terms: dict) -> str:
+    parts = []
+    for k, (name, c) in enumerate(terms.items()):
+        value = sig(abs(c))
+        sign = "-" if c < 0 else ("+" if k else "")
+        body = value + ("" if name == "1" else f" {name}")
+        parts.append(f"{sign} {body}" if k else f"{sign}{body}")
+    return " ".join(parts)
+
+
+def _cause(res) -> list:
+    out = ["2. The cause", "-" * 12]
+    contradicted = res.consistency_p_value < res.alpha
+    for state, terms in res.terms.items():
+        if terms:
+            out.append(f"{state}' misses: {_terms_text(terms)}")
+        elif contradicted and not res.found_correction:
+            out.append(
+                f"{state}': no library term explains the misfit - the library lacks "
+                "the effect."
+            )
+        else:
+            out.append(
+                f"{state}': no significant correction - the assumed equation is "
+                "consistent with the data."
+            )
+    if res.term_estimates:
+        rows = [
+            [
+                te.state,
+                te.feature,
+                signed(te.coefficient),
+                f"[{signed(te.ci_low)}, {signed(te.ci_high)}]",
+                sig(te.std_error, 3),
+                f"{sig(100 * te.share_of_correction, 3)}%",
+                f"{sig(100 * te.share_of_dynamics, 3)}%",
+                signed(te.regression_coefficient),
+                sig(te.partial_f),
+                p_value(te.p_value),
+            ]
+            for te in res.term_estimates
+        ]
+        header = [
+            "eq.",
+            "term",
+            "coef (fit)",
+            "95% CI",
+            "std err",
+            "of corr.",
+            "of dx/dt",
+            "coef (d regr.)",
+            "partial F",
+            "p",
+        ]
+        out.append(text_table(header, rows))
+        out.append(
+            "(coef (fit): fitted to the measurements; 'of corr.' / 'of dx/dt': RMS "
+            "size of the term over that of the correction / of the equation.)"
+        )
+    if res.pruned_terms:
+        out.append(
+            "Proposed or tried but not kept (alpha = "
+            f"{res.alpha}): {'; '.join(res.pruned_terms)}."
+        )
+    if np.isfinite(res.correction_p_value):
+        out.append(
+            "F-test of the extended against the assumed model: p = "
+            f"{p_value(res.correction_p_value)}."
+        )
+    summary = getattr(res.optimizer, "summary", None)
+    if callable(summary):
+        out += ["", "Stepwise regression of d(t) (ANOVA per error state):"]
+        try:
+            text = summary(
+                feature_names=res.library_feature_names,
+                target_names=[res.state_names[i] for i in res.error_states],
+            )
+        except TypeError:
+            text = summary()
+        out.append(str(text).rstrip())
+    return out + [""]
+
+
+def _gain(res) -> list:
+    out = ["4. The gain", "-" * 11]
+    g = res.gain
+    validation = g.validation_rmse_assumed is not None
+    rows = []
+    for j, name in enumerate(g.channel_names):
+        row = [
+            name,
+            sig(g.rmse_assumed[j]),
+            sig(g.rmse_extended[j]),
+            sig(g.ratio[j], 3) + "x",
+            sig(g.noise_floor[j]),
+        ]
+        if validation:
+            row += [
+                sig(g.validation_rmse_assumed[j]),
+                sig(g.validation_rmse_extended[j]),
+                sig(g.validation_ratio[j], 3) + "x",
+            ]
+        rows.append(row)
+    header = ["channel", "RMSE assumed", "RMSE extended", "gain (in-sample)", "noise"]
+    if validation:
+        header += ["valid. assumed", "valid. extended", "valid. gain"]
+    out.append("Simulation RMSE against the measurements (noise = a perfect model):")
+    out.append(text_table(header, rows))
+    out.append(
+        "In-sample: each model fitted to this record (the extended model's terms "
+        "were chosen on it)."
+    )
+    if validation:
+        out.append(
+            f"Validation: initial state from the first {g.validation_window} samples "
+            "of the validation record, then a free run; RMSE over the rest."
+        )
+    return out
+
+
+def format_discovery(res) -> str:
+    out = _header(res) + _what_is_wrong(res) + _cause(res)
+    out += ["3. The extended model", "-" * 21]
+    for name, eq in zip(res.state_names, res.extended_model.equations()):
+        out.append(f"({name})' = {eq}")
+    out.append("")
+    out += _gain(res)
+    if res.warnings:
+        out += ["", "Warnings:"] + [f"- {w}" for w in res.warnings]
+    return "\n".join(out) + "\n"

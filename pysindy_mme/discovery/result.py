@@ -1,0 +1,214 @@
+"""What :func:`discover` returns: the step records and what they add up to."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .report import format_discovery
+
+__all__ = ["Discovery", "TermEstimate"]
+
+
+@dataclass(frozen=True)
+class TermEstimate:
+    """One identified correction term.
+
+    Attributes
+    ----------
+    state : str
+        The equation it corrects (``state``').
+    feature : str
+        Library feature name.
+    coefficient : float
+        Output-error coefficient (fitted to the measurements).
+    regression_coefficient : float
+        Coefficient from the stepwise regression of ``d(t)`` (biased to 0;
+        NaN for a term the regression did not propose).
+    std_error : float
+        NaN when the data do not determine it.
+    ci_low, ci_high : float
+        95 % confidence interval of ``coefficient``.
+    partial_f : float
+        Partial F-ratio in the stepwise regression (NaN for other optimizers
+        or terms it did not propose).
+    p_value : float
+        Wald test of ``coefficient`` in the output-error fit.
+    rms_term : float
+        RMS of the term (coefficient times function) along the fitted
+        trajectory: its size in the units of ``state``'.
+    share_of_correction : float
+        ``rms_term`` over the RMS of the whole correction of that equation.
+    share_of_dynamics : float
+        ``rms_term`` over the RMS of the extended model's ``state``'.
+    """
+
+    state: str
+    feature: str
+    coefficient: float
+    regression_coefficient: float
+    std_error: float
+    ci_low: float
+    ci_high: float
+    partial_f: float
+    p_value: float
+    rms_term: float = float("nan")
+    share_of_correction: float = float("nan")
+    share_of_dynamics: float = float("nan")
+
+
+@dataclass
+class Discovery:
+    """What :func:`discover` found. ``print(result)`` tells the story.
+
+    The study's five steps each leave a record: ``assumed`` (step 1, the
+    assumed model's output-error fit and consistency test), ``estimate``
+    (step 2, MME), ``proposals`` (step 3, the regression of ``d(t)``),
+    ``confirmation`` (step 4, the output-error selection) and ``gain``
+    (step 5). The attributes below are read off them.
+
+    Attributes
+    ----------
+    terms : dict
+        ``{state name: {feature name: coefficient}}`` for every error state;
+        an empty inner dict means no significant correction for that state.
+    term_estimates : list of TermEstimate
+    extended_model : ExtendedModel
+        Assumed model + fitted correction.
+    gain : Gain
+    consistency_p_value : float
+        Chi-square test of the assumed model against the data (its initial
+        state fitted): small means the data contradict the assumed model.
+    correction_p_value : float
+        F-test of the extended model against the assumed one (NaN when no
+        term was kept).
+    mme : MME
+        The fitted estimator (``smoothed_x_``, ``d_``, ``W_``, ...).
+    optimizer : fitted optimizer
+        The regression of ``d`` (``anova_``, ``steps_``, ``summary()``).
+    verdict : str
+        One sentence that the consistency test, the correction test and the
+        report agree on.
+    warnings : list of str
+    """
+
+    study: object
+    assumed: object
+    estimate: object
+    proposals: object
+    confirmation: object
+    gain: object
+    extended_model: object
+    terms: dict
+    term_estimates: list
+    verdict: str
+    warnings: list = field(default_factory=list)
+    extended_fit: object | None = None
+
+    # ----------------------------------------------------- read off the steps
+    t = property(lambda self: self.study.t)
+    y = property(lambda self: self.study.y)
+    u = property(lambda self: self.study.u)
+    state_names = property(lambda self: self.study.state_names)
+    input_names = property(lambda self: self.study.input_names)
+    channel_names = property(lambda self: self.study.channel_names)
+    measured = property(lambda self: self.study.measured)
+    error_states = property(lambda self: self.study.error_states)
+    noise_cov = property(lambda self: self.study.noise_cov)
+    alpha = property(lambda self: self.study.alpha)
+    mme = property(lambda self: self.estimate.mme)
+    d_summary = property(lambda self: self.estimate.summary)
+    optimizer = property(lambda self: self.proposals.optimizer)
+    library_feature_names = property(lambda self: self.proposals.feature_names)
+    regression_coef = property(lambda self: self.proposals.coefficients)
+    assumed_fit = property(lambda self: self.assumed.fit)
+    assumed_simulation = property(lambda self: self.assumed.fit.x)
+    consistency_chi2 = property(lambda self: self.assumed.chi2)
+    consistency_dof = property(lambda self: self.assumed.dof)
+    consistency_p_value = property(lambda self: self.assumed.p_value)
+    correction_p_value = property(lambda self: self.confirmation.correction_p_value)
+
+    @property
+    def extended_simulation(self) -> np.ndarray:
+        fit = self.extended_fit
+        return self.assumed.fit.x if fit is None else fit.x
+
+    @property
+    def candidate_terms(self) -> dict:
+        return self.proposals.candidate_terms(self.state_names)
+
+    @property
+    def pruned_terms(self) -> list:
+        def describe(slot):
+            i, c = slot
+            return f"{self.state_names[i]}: {self.proposals.name(c)}"
+
+        return [f"{describe(s)} ({why})" for s, why in self.confirmation.rejected]
+
+    @property
+    def found_correction(self) -> bool:
+        return any(self.terms.values())
+
+    def __str__(self) -> str:
+        return format_discovery(self)
+
+    def summary(self) -> str:
+        return str(self)
+
+    def plot(self, x_true=None, d_true=None, path=None):
+        """Draw the study (needs matplotlib: ``pip install pysindy-mme[plot]``).
+
+        Parameters
+        ----------
+        x_true, d_true : ndarray (n_samples, n_states), optional
+            True states / model error, drawn for comparison when known.
+        path : str or Path, optional
+            Save the figure there.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plotting import plot_discovery
+
+        return plot_discovery(self, x_true=x_true, d_true=d_true, path=path)
+
+    def to_dict(self) -> dict:
+        """Plain-Python summary (JSON-serialisable) for saving."""
+
+        def plain(v):
+            v = float(v)
+            return v if np.isfinite(v) else None
+
+        return {
+            "state_names": list(self.state_names),
+            "input_names": list(self.input_names),
+            "channels": list(self.channel_names),
+            "error_states": [self.state_names[i] for i in self.error_states],
+            "n_samples": int(self.t.size),
+            "noise_covariance": self.noise_cov.tolist(),
+            "W": np.asarray(self.mme.W_).tolist(),
+            "covariance_ratio": np.asarray(self.mme.covariance_ratio_).tolist(),
+            "consistency": {
+                "chi2": plain(self.consistency_chi2),
+                "dof": self.consistency_dof,
+                "p_value": plain(self.consistency_p_value),
+            },
+            "model_error": self.d_summary,
+            "candidate_terms": self.candidate_terms,
+            "pruned_terms": list(self.pruned_terms),
+            "correction_p_value": plain(self.correction_p_value),
+            "terms": self.terms,
+            "term_estimates": [
+                {
+                    k: (plain(v) if isinstance(v, float) else v)
+                    for k, v in vars(te).items()
+                }
+                for te in self.term_estimates
+            ],
+            "verdict": self.verdict,
+            "extended_model": self.extended_model.equations(),
+            "gain": self.gain.to_dict(),
+            "warnings": list(self.warnings),
+        }

@@ -1,0 +1,340 @@
+"""The five steps of the study, each a function returning a small record.
+
+1. :func:`fit_assumed_model` - the assumed model against the data: its
+   output-error fit (initial state) and a chi-square test of consistency;
+2. :func:`estimate_model_error` - :class:`MME`: the full state and the model
+   error ``d(t)``;
+3. :func:`~pysindy_mme.discovery.propose.propose_terms` - the regression of
+   ``d(t)`` on the library proposes terms;
+4. :func:`confirm_on_measurements` - output-error tests on the measurements
+   settle them (:mod:`.confirm`), and the answer is checked against a finer
+   integration step;
+5. :func:`measure_gain` - simulation error of both models, in-sample and on
+   a validation record (:mod:`.gain`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+from sklearn.base import clone
+
+from ..core.integrate import InputSignal
+from ..core.model import rowwise_jacobian
+from .confirm import Confirmation, confirm_terms
+from .gain import Gain, free_run, rmse
+from .output_error import OutputErrorFit, OutputErrorModel
+
+__all__ = [
+    "AssumedFit",
+    "ErrorEstimate",
+    "fit_assumed_model",
+    "baseline",
+    "estimate_model_error",
+    "confirm_on_measurements",
+    "measure_gain",
+    "output_error_engine",
+    "rk4_substeps",
+    "step_size_check",
+    "validation_runs",
+]
+
+
+@dataclass
+class AssumedFit:
+    """Step 1: the assumed model's output-error fit and consistency test."""
+
+    fit: OutputErrorFit
+    chi2: float
+    dof: int
+    p_value: float
+    substeps: int
+    notes: list = field(default_factory=list)
+
+
+@dataclass
+class ErrorEstimate:
+    """Step 2: MME's estimate of the states and the model error."""
+
+    mme: object
+    x: np.ndarray
+    d: np.ndarray
+    summary: dict
+    notes: list = field(default_factory=list)
+
+
+def _base(study):
+    """The assumed model as ``(x, t, u, p) -> dx/dt`` (validated, unchecked)."""
+    f = study.model.unchecked()
+
+    def base(x, t, u, p):
+        tt = np.broadcast_to(np.asarray(t, dtype=float), (x.shape[0],))
+        return np.asarray(f(x, tt, u), dtype=float)
+
+    return base
+
+
+def rk4_substeps(study, rhs_rows, x, t) -> int:
+    """RK4 steps per interval so that ``h * spectral radius <= 0.5``.
+
+    The spectral radius of the model's Jacobian along the trajectory sets
+    the fastest time scale; RK4 is accurate to ~1e-5 relative per step at
+    ``h rho = 0.5``. At least the estimator's own ``n_substeps``.
+    """
+    stride = max(1, x.shape[0] // 200)  # a sample of points is enough
+    xs = x[::stride]
+    jac = rowwise_jacobian(lambda z: rhs_rows(z, stride), xs, rel_step=1e-6)
+    jac[~np.isfinite(jac)] = 0.0
+    rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
+    dt = float(np.max(np.diff(t)))
+    auto = int(min(50, max(1, np.ceil(dt * rho / 0.5))))
+    return max(auto, int(study.mme.n_substeps))
+
+
+def output_error_engine(study, features, substeps) -> OutputErrorModel:
+    """An :class:`OutputErrorModel` of the fitting record."""
+    return OutputErrorModel(
+        _base(study),
+        study.n_states,
+        features,
+        study.y,
+        study.t,
+        study.inputs,
+        study.noise_cov,
+        study.measurement,
+        n_substeps=substeps,
+    )
+
+
+def fit_assumed_model(study) -> AssumedFit:
+    """Step 1: output-error fit of the assumed model (initial state only).
+
+    Started from the measured states (the unmeasured ones at zero), with as
+    many RK4 steps per interval as the model's time scales need there.
+    """
+
+    def rows(x, stride):
+        return study.model(x, study.t[::stride][: len(x)], _rows(study.u, stride, x))
+
+    substeps = rk4_substeps(study, rows, study.x_init, study.t)
+    engine = output_error_engine(study, None, substeps)
+    return _assumed_fit(study, engine.fit((), np.zeros(0), study.x_init), substeps)
+
+
+def _rows(u, stride, x):
+    return None if u is None else u[::stride][: len(x)]
+
+
+def _assumed_fit(study, fit, substeps, notes=()) -> AssumedFit:
+    notes = list(notes)
+    if not fit.converged:
+        notes.append(
+            "the output-error fit of the assumed model did not converge "
+            f"({fit.message})"
+        )
+    dof = max(fit.n_residuals - study.n_states, 1)
+    p = float(stats.chi2.sf(fit.cost, dof)) if np.isfinite(fit.cost) else 0.0
+    return AssumedFit(
+        fit=fit,
+        chi2=float(fit.cost),
+        dof=dof,
+        p_value=p,
+        substeps=substeps,
+        notes=notes,
+    )
+
+
+def baseline(study, assumed: AssumedFit, engine: OutputErrorModel, x_hat) -> AssumedFit:
+    """The assumed model's fit by ``engine``'s discretisation: the tests' baseline.
+
+    Step 4's F-tests compare fits made with the same RK4 steps. When step 4
+    needs more steps than step 1 used, or step 1 did not converge, the
+    assumed model is refitted by ``engine``, from step 1's trajectory and
+    from MME's, and the better fit is kept (and reported).
+    """
+    if engine.n_substeps == assumed.substeps and assumed.fit.converged:
+        return assumed
+    fits = [
+        engine.fit((), np.zeros(0), assumed.fit.x),
+        engine.fit((), np.zeros(0), x_hat),
+    ]
+    best = min(fits, key=lambda f: (not f.converged, f.cost))
+    return _assumed_fit(study, best, engine.n_substeps)
+
+
+def estimate_model_error(study) -> ErrorEstimate:
+    """Step 2: MME on the fitting record."""
+    mme = clone(study.mme)
+    mme.fit(study.y, study.t, study.inputs.u)
+    notes = (
+        []
+        if mme.converged_
+        else ["MME did not converge; the state estimate may be poor"]
+    )
+    x_hat = np.asarray(mme.smoothed_x_)
+    d_hat = np.asarray(mme.d_)
+    f_hat = study.model(x_hat, study.t, study.u)
+    summary = {}
+    for i in study.error_states:
+        rms_d = float(np.sqrt(np.mean(d_hat[:, i] ** 2)))
+        rms_total = float(np.sqrt(np.mean((f_hat[:, i] + d_hat[:, i]) ** 2)))
+        summary[study.state_names[i]] = {
+            "rms_d": rms_d,
+            "rms_dynamics": rms_total,
+            "share": rms_d / rms_total if rms_total > 0 else float("nan"),
+        }
+    return ErrorEstimate(mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes)
+
+
+def confirm_on_measurements(
+    study, engine, assumed: AssumedFit, estimate, proposals, progress=None
+) -> Confirmation:
+    """Step 4: settle the proposals on the measurements (see :mod:`.confirm`).
+
+    With ``refit=False`` the regression's terms and values are kept and only
+    the initial state is fitted (for comparison; not recommended).
+    """
+
+    def describe(slot):
+        i, c = slot
+        return f"{study.state_names[i]}: {proposals.name(c)}"
+
+    if not study.refit:
+        fit = None
+        if proposals.slots:
+            values = np.asarray(proposals.start_values)
+            fit = engine.fit_held(proposals.slots, values, estimate.x)
+        return Confirmation(list(proposals.slots) if fit else [], fit)
+    confirmation = confirm_terms(
+        engine,
+        assumed.fit,
+        proposals.slots,
+        proposals.start_values,
+        estimate.x,
+        study.alpha,
+        describe,
+        library_candidates=proposals.candidates,
+        progress=progress,
+    )
+    confirmation.rejected[:0] = list(proposals.rejected)
+    return confirmation
+
+
+def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None:
+    """Refit with twice the RK4 steps; a note if the answer moves.
+
+    A coefficient that moves by more than half its standard error, or a
+    cost that changes by more than one unit (of chi-square), means the
+    result depends on the integrator (a stiff or non-smooth model): said so.
+    """
+    finer = OutputErrorModel(
+        engine.base,
+        engine.n_states,
+        engine.features,
+        engine.y,
+        engine.t,
+        engine.inputs,
+        engine.R,
+        engine.measurement,
+        engine.n_physical,
+        engine.n_offsets,
+        n_substeps=2 * engine.n_substeps,
+    )
+    check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=20)
+    if not check.ok:
+        return (
+            "the extended model cannot be fitted with a finer integration step "
+            f"({check.message}): its result depends on the integrator"
+        )
+    se = fit.std_errors
+    moved = np.abs(check.theta - fit.theta) > 0.5 * np.where(np.isfinite(se), se, 0.0)
+    if np.any(moved) or abs(check.cost - fit.cost) > 1.0:
+        return (
+            "the result changes with the integration step (refitted with twice "
+            f"the RK4 steps: cost {fit.cost:.6g} -> {check.cost:.6g}, coefficients "
+            f"{np.array2string(fit.theta, precision=4)} -> "
+            f"{np.array2string(check.theta, precision=4)}): the model is stiff or "
+            "not smooth at this sampling rate; treat its numbers with care"
+        )
+    return None
+
+
+def _frozen(study, model_rhs):
+    """``rhs(X (B, n), s, u (m,))`` of a fully specified model, for free runs."""
+
+    def rhs(x, s, u):
+        uu = None if u is None else np.broadcast_to(u, (x.shape[0], u.shape[-1]))
+        return model_rhs(x, np.full(x.shape[0], s), uu)
+
+    return rhs
+
+
+def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
+    """Step 5: in-sample RMSE of both fits; out-of-sample free runs.
+
+    ``fits``: ``{"assumed": OutputErrorFit, "extended": OutputErrorFit}``;
+    ``models``: the same keys, ``(x, t, u) -> dx/dt`` row-wise.
+    """
+    measure = _measure(study)
+    gain = Gain(
+        channel_names=study.channel_names,
+        rmse_assumed=rmse(study.y, measure(fits["assumed"].x)),
+        rmse_extended=rmse(study.y, measure(fits["extended"].x)),
+        noise_floor=np.sqrt(np.diag(study.noise_cov)),
+    )
+    if study.validation is None:
+        return gain
+    runs = validation_runs(study, models, features, substeps)
+    gain.validation_rmse_assumed = runs["assumed"].rmse
+    gain.validation_rmse_extended = runs["extended"].rmse
+    gain.validation_window = study.validation_window
+    for name, run in runs.items():
+        if run.diverged_at is not None:
+            gain.notes.append(
+                f"the {name} model's free run on the validation record diverged at "
+                f"t = {run.diverged_at:.6g}: it has no validation RMSE"
+            )
+    return gain
+
+
+def _measure(study):
+    C = study.measurement
+    if callable(C):
+        return lambda x: np.asarray(C(np.atleast_2d(x)), dtype=float)
+    return lambda x: np.asarray(x) @ np.asarray(C).T
+
+
+def validation_runs(study, models: dict, features, substeps) -> dict:
+    """Initial state from the leading window, then a free run, per model."""
+    y_v, t_v, u_v = study.validation
+    window = min(study.validation_window, y_v.shape[0] - 1)
+    inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
+    measure = _measure(study)
+    # MME on the window gives a starting trajectory for the window fits.
+    head = clone(study.mme).set_params(u=None if u_v is None else u_v[:window])
+    head.fit(y_v[:window], t_v[:window])
+    x_start = np.asarray(head.smoothed_x_)
+    runs = {}
+    for name, model_rhs in models.items():
+
+        def base(x, t, u, p, model_rhs=model_rhs):
+            return model_rhs(x, t, u)
+
+        window_fit = OutputErrorModel(
+            base,
+            study.n_states,
+            features,
+            y_v[:window],
+            t_v[:window],
+            inputs_v.subset(0, window),
+            study.noise_cov,
+            study.measurement,
+            n_substeps=substeps,
+        ).fit((), np.zeros(0), x_start)
+        x0 = window_fit.x[0]
+        runs[name] = free_run(
+            _frozen(study, model_rhs), x0, t_v, inputs_v, substeps, measure, y_v, window
+        )
+    return runs

@@ -1,0 +1,330 @@
+""":func:`discover`: what the assumed model gets wrong, why, the fix, the gain.
+
+The study runs the five steps of :mod:`.steps` in order, each taking the
+records of the ones before, and assembles a :class:`~.result.Discovery`.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..core.progress import Progress
+from ..exceptions import DiscoveryWarning
+from .extended import ExtendedModel
+from .inputs import check_study
+from .propose import propose_terms
+from .result import Discovery, TermEstimate
+from .steps import (
+    baseline,
+    confirm_on_measurements,
+    estimate_model_error,
+    fit_assumed_model,
+    measure_gain,
+    output_error_engine,
+    rk4_substeps,
+    step_size_check,
+)
+
+__all__ = ["discover"]
+
+
+def discover(
+    y,
+    t,
+    *,
+    assumed_model=None,
+    n_states=None,
+    measured=None,
+    noise_variance=None,
+    error_states=None,
+    feature_library=None,
+    optimizer=None,
+    feature_names=None,
+    u=None,
+    validation=None,
+    W="auto",
+    error_model="white",
+    alpha=0.01,
+    refit=True,
+    assumed_equations=None,
+    mme=None,
+    input_hold="linear",
+    validation_window=50,
+    verbose=False,
+):
+    """Find what an assumed model gets wrong, name the cause, fix it, measure it.
+
+    Parameters
+    ----------
+    y : array-like (n_samples, n_measured)
+        Noisy measurements of the states listed in ``measured``; NaN marks a
+        missing sample.
+    t : array-like (n_samples,) or float
+        Strictly increasing sample times (or the time step).
+    assumed_model : callable, pysindy model or ExtendedModel
+        The user's simulation model ``f(x, t)`` or ``f(x, t, u)``, vectorised.
+    n_states : int
+    measured : sequence of int, optional
+        Measured state indices (default: all states).
+    noise_variance : float, array (n_measured,) or (n_measured, n_measured), or "auto"
+        Measurement noise (co)variance. "auto" estimates it from the data.
+    error_states : sequence of int, optional
+        States whose equation may be wrong (default: all).
+    feature_library : pysindy feature library, optional
+        Candidate functions of the states (and inputs); default
+        ``PolynomialLibrary(degree=3)``.
+    optimizer : pysindy optimizer, optional
+        Default :class:`FloatingFStepwise` ``()``.
+    feature_names : list of str, optional
+        Names of the states followed by the inputs (default ``x0, x1, ...``
+        and ``u0, ...``).
+    u : array-like (n_samples, n_inputs), optional
+        Known inputs on the sample grid.
+    validation : tuple (y, t) or (y, t, u), optional
+        Another record, used only to measure the gain out of sample: each
+        model's initial state is estimated from its first
+        ``validation_window`` samples, then the model runs free.
+    W : "auto", "ml" or positive number, default "auto"
+        MME weight (see :class:`MME`).
+    error_model : {"white", "random_walk"}, default "white"
+        MME's prior on the model error (see :class:`MME`).
+    alpha : float
+        Significance level of the tests (consistency, terms, F-test of the
+        extended against the assumed model).
+    refit : bool
+        Settle the terms on the measurements by output error (recommended).
+    assumed_equations : list of str, optional
+        Text of the assumed right-hand sides for the printed equations.
+    mme : MME, optional
+        An estimator carrying every MME setting (``measurement_matrix``,
+        ``measurement_function``, ``n_substeps``, ``max_iter``, ...); then
+        ``assumed_model``, ``n_states``, ``measured``, ``noise_variance``,
+        ``error_states``, ``W`` and ``error_model`` come from it and must
+        not be given here too.
+    input_hold : {"linear", "zoh"}
+        How the inputs act between samples (see :class:`MME`).
+    validation_window : int, default 50
+        Leading samples of the validation record used to estimate the initial
+        state; the validation RMSE is taken over the rest.
+    verbose : bool
+        Report each stage on standard error (stages are always logged to the
+        ``"pysindy_mme"`` logger).
+
+    Returns
+    -------
+    Discovery
+    """
+    study = check_study(
+        y,
+        t,
+        mme=mme,
+        feature_library=feature_library,
+        optimizer=optimizer,
+        feature_names=feature_names,
+        u=u,
+        validation=validation,
+        alpha=alpha,
+        refit=refit,
+        assumed_equations=assumed_equations,
+        input_hold=input_hold,
+        validation_window=validation_window,
+        assumed_model=assumed_model,
+        n_states=n_states,
+        measured=measured,
+        noise_variance=noise_variance,
+        error_states=error_states,
+        W=W,
+        error_model=error_model,
+    )
+    progress = Progress(verbose)
+    progress.stage(f"checked: {study.t.size} samples, {study.n_states} states")
+    assumed = fit_assumed_model(study)  # 1
+    progress.stage(f"1. assumed model: chi2 = {assumed.chi2:.6g} on {assumed.dof} dof")
+    estimate = estimate_model_error(study)  # 2
+    progress.stage(f"2. MME: W = {np.asarray(estimate.mme.W_)}")
+    proposals = propose_terms(study, estimate.x, estimate.d)  # 3
+    progress.stage(f"3. regression of d(t) proposes {len(proposals.slots)} term(s)")
+    substeps = max(assumed.substeps, _substeps(study, proposals, estimate.x))
+    engine = output_error_engine(study, proposals.evaluate, substeps)
+    assumed = baseline(study, assumed, engine, estimate.x)
+    confirmation = confirm_on_measurements(  # 4
+        study, engine, assumed, estimate, proposals, progress.step
+    )
+    progress.stage(f"4. confirmed {len(confirmation.slots)} term(s)")
+    extended = _extended_model(study, proposals, confirmation, estimate.x)
+    fits = {"assumed": assumed.fit, "extended": confirmation.fit or assumed.fit}
+    models = {"assumed": study.model, "extended": extended}
+    gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
+    progress.stage("5. gain measured")
+    notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
+    terms, estimates = _terms(study, proposals, confirmation)
+    for note in notes:
+        warnings.warn(note, DiscoveryWarning, stacklevel=2)
+    return Discovery(
+        study=study,
+        assumed=assumed,
+        estimate=estimate,
+        proposals=proposals,
+        confirmation=confirmation,
+        gain=gain,
+        extended_model=extended,
+        terms=terms,
+        term_estimates=estimates,
+        verdict=_verdict(study, assumed, confirmation),
+        warnings=notes,
+        extended_fit=confirmation.fit,
+    )
+
+
+def _substeps(study, proposals, x_hat) -> int:
+    """RK4 steps per interval for the assumed model plus the proposals."""
+    coef, u = proposals.coefficients, study.u
+    cols = [int(j) for j in np.flatnonzero(np.any(coef != 0, axis=0))]
+
+    def rhs_rows(x, stride):
+        ts = study.t[::stride][: x.shape[0]]
+        us = None if u is None else u[::stride][: x.shape[0]]
+        out = study.model(x, ts, us)
+        if cols:
+            z = x if us is None else np.hstack([x, us])
+            with np.errstate(all="ignore"):
+                out = out + proposals.features(z, cols) @ coef[:, cols].T
+        return out
+
+    return rk4_substeps(study, rhs_rows, x_hat, study.t)
+
+
+def _extended_model(study, proposals, confirmation, x_hat) -> ExtendedModel:
+    n_lib = len(proposals.feature_names)
+    coef = np.zeros((study.n_states, n_lib))
+    intercept = np.zeros(study.n_states)
+    values = [] if confirmation.fit is None else confirmation.fit.coefficients
+    for (i, c), v in zip(confirmation.slots, values):
+        if c == proposals.constant_column:
+            intercept[i] = v
+        else:
+            coef[i, c] = v
+    z_ref = x_hat if study.u is None else np.hstack([x_hat, study.u])
+    return ExtendedModel(
+        study.model,
+        proposals.library,
+        coef,
+        study.state_names,
+        study.input_names,
+        intercept=intercept,
+        assumed_equations=study.assumed_equations,
+        z_reference=z_ref,
+    )
+
+
+def _terms(study, proposals, confirmation):
+    """``terms`` and the :class:`TermEstimate` list of the kept terms."""
+    terms = {study.state_names[i]: {} for i in study.error_states}
+    fit = confirmation.fit
+    if fit is None:
+        return terms, []
+    ci = fit.confidence_intervals()[fit.n_physical :]
+    se = fit.std_errors[fit.n_physical :]
+    p_values = fit.coefficient_p_values()
+    z = fit.x if study.u is None else np.hstack([fit.x, study.u])
+    with np.errstate(all="ignore"):
+        values = proposals.evaluate(z, [c for _, c in confirmation.slots])
+    contributions = values * fit.coefficients
+    dynamics = study.model(fit.x, study.t, study.u)
+    estimates = []
+    for k, (i, c) in enumerate(confirmation.slots):
+        name = study.state_names[i]
+        coefficient = float(fit.coefficients[k])
+        terms[name][proposals.name(c)] = coefficient
+        same_eq = [j for j, (ii, _) in enumerate(confirmation.slots) if ii == i]
+        correction = contributions[:, same_eq].sum(axis=1)
+        rms_term = float(np.sqrt(np.mean(contributions[:, k] ** 2)))
+        rms_corr = float(np.sqrt(np.mean(correction**2)))
+        rms_dyn = float(np.sqrt(np.mean((dynamics[:, i] + correction) ** 2)))
+        estimates.append(
+            TermEstimate(
+                state=name,
+                feature=proposals.name(c),
+                coefficient=coefficient,
+                regression_coefficient=_regression_value(proposals, i, c),
+                std_error=float(se[k]) if se[k] > 0 else float("nan"),
+                ci_low=float(ci[k, 0]),
+                ci_high=float(ci[k, 1]),
+                partial_f=_partial_f(proposals, study, i, c),
+                p_value=float(p_values[k]),
+                rms_term=rms_term,
+                share_of_correction=rms_term / rms_corr if rms_corr > 0 else np.nan,
+                share_of_dynamics=rms_term / rms_dyn if rms_dyn > 0 else np.nan,
+            )
+        )
+    return terms, estimates
+
+
+def _regression_value(proposals, state, column) -> float:
+    if column == proposals.constant_column:
+        return float(proposals.intercepts[state])
+    value = float(proposals.coefficients[state, column])
+    return value if value != 0 else float("nan")
+
+
+def _partial_f(proposals, study, state, column) -> float:
+    """Partial F of ``column`` in the stepwise model of ``state`` (NaN if none)."""
+    tables = getattr(proposals.optimizer, "anova_", None)
+    if tables is None or column == proposals.constant_column:
+        return float("nan")
+    table = tables[list(study.error_states).index(state)]
+    support = list(np.asarray(getattr(table, "features", ())))
+    partial = np.asarray(getattr(table, "partial_f", []))
+    if column in support and len(partial) == len(support):
+        return float(partial[support.index(column)])
+    return float("nan")
+
+
+def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> list:
+    """Everything the user must know about how far to trust the numbers."""
+    notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
+    fit = confirmation.fit
+    if fit is not None:
+        if not fit.converged:
+            notes.append(
+                "the output-error refit of the extended model did not converge "
+                f"({fit.message}); its coefficients may be inaccurate"
+            )
+        if fit.rank_deficient:
+            notes.append(
+                "some coefficients of the extended model are not determined by the "
+                "data (their standard errors are reported as n/a)"
+            )
+        from scipy import stats
+
+        p_fit = float(stats.chi2.sf(fit.cost, fit.dof))
+        if p_fit < study.alpha:
+            notes.append(
+                "the extended model still does not fit the data to the noise level "
+                f"(chi2 = {fit.cost:.4g} on {fit.dof} dof, p = {p_fit:.2g}): the "
+                "library may lack the missing effect, the noise variance may be too "
+                "small, or the search stopped in a local optimum"
+            )
+        check = step_size_check(engine, fit)
+        if check:
+            notes.append(check)
+        used = {c for _, c in confirmation.slots}
+        for c in sorted(used & set(proposals.nonsmooth)):
+            notes.append(f"{proposals.name(c)} is {proposals.nonsmooth[c]}")
+    return notes
+
+
+def _verdict(study, assumed, confirmation) -> str:
+    """One sentence the consistency test and the correction test agree on."""
+    contradicted = assumed.p_value < study.alpha
+    if confirmation.slots:
+        return "the data contradict the assumed model; the identified terms explain it"
+    if contradicted:
+        return (
+            "the data contradict the assumed model, but no library term explains "
+            "it: the library lacks the effect (try other functions, inputs, or "
+            "check the noise variance and the model's parameters)"
+        )
+    return "the data are consistent with the assumed model: no correction needed"
