@@ -277,6 +277,17 @@ class ParametricModel:
         self._rows = np.array([i for i, _ in self.slots], dtype=int)
         self._cols = np.array([position[c] for _, c in self.slots], dtype=int)
         self.n_params = self.n_physical + len(self.slots) + int(n_extra)
+        self._last = (None, None, None)  # (x, u, features at x): one-entry cache
+
+    def _phi(self, x, u):
+        """The used library columns at ``x`` (cached for the same ``x`` object:
+        an integrator evaluates the model, its Jacobian and its parameter
+        derivative at each stage point)."""
+        last_x, last_u, phi = self._last
+        if x is not last_x or u is not last_u:
+            phi = self.features(self._z(x, u), self.used)
+            self._last = (x, u, phi)
+        return phi
 
     def _z(self, x, u):
         return (
@@ -285,15 +296,36 @@ class ParametricModel:
             else np.hstack([x, np.broadcast_to(u, (len(x), u.shape[-1]))])
         )
 
+    def base_part(self, x, t, u, theta) -> np.ndarray:
+        """The assumed model alone at its parameters ``theta[:n_physical]``."""
+        return np.array(self.base(x, t, u, theta[: self.n_physical]), dtype=float)
+
+    def _coefficient_matrix(self, theta):
+        coef = np.zeros((len(self.used), self.n_states))
+        c = theta[self.n_physical : self.n_physical + len(self.slots)]
+        np.add.at(coef, (self._cols, self._rows), c)
+        return coef
+
     def __call__(self, x, t, u, theta) -> np.ndarray:
-        p = theta[: self.n_physical]
-        out = np.array(self.base(x, t, u, p), dtype=float)
+        out = self.base_part(x, t, u, theta)
         if self.slots:
-            phi = self.features(self._z(x, u), self.used)
-            coef = np.zeros((len(self.used), self.n_states))
-            c = theta[self.n_physical : self.n_physical + len(self.slots)]
-            np.add.at(coef, (self._cols, self._rows), c)
-            out += phi @ coef
+            out += self._phi(x, u) @ self._coefficient_matrix(theta)
+        return out
+
+    @property
+    def has_exact_correction_jacobian(self) -> bool:
+        return not self.slots or hasattr(self.features, "gradient")
+
+    def correction_jacobian(self, x, u, theta) -> np.ndarray:
+        """``d (correction) / dx``, ``(K, n, n)``, from the features' gradient."""
+        K, n = x.shape
+        if not self.slots:
+            return np.zeros((K, n, n))
+        grad = self.features.gradient(self._z(x, u), self.used)
+        c = theta[self.n_physical : self.n_physical + len(self.slots)]
+        out = np.zeros((K, n, n))
+        for state, col, coef in zip(self._rows, self._cols, c):
+            out[:, state, :] += coef * grad[:, col, :n]
         return out
 
     def jacobian(self, x, t, u, theta) -> np.ndarray:
@@ -317,6 +349,6 @@ class ParametricModel:
                     - np.asarray(self.base(x, t, u, lo))
                 ) / (2.0 * step[j])
         if self.slots:
-            phi = self.features(self._z(x, u), self.used)
+            phi = self._phi(x, u)
             out[:, self._rows, n_p + np.arange(len(self.slots))] = phi[:, self._cols]
         return out

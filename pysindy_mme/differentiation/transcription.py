@@ -104,27 +104,43 @@ class _Dynamics:
 
     def __init__(self, model, unit: float):
         self.model, self.unit = model, unit
+        self._last = (None, None)  # (z, s z): the same z gives the same array
         self.n = model.n_states
         self.p = int(getattr(model, "n_params", 0))
         self.parametric = hasattr(model, "param_jacobian")
         own = type(model).jacobian is not ModelFunction.jacobian
         self._own_jacobian = isinstance(model, ModelFunction) and own
 
+    def _user(self, z):
+        """``s z``, the same array object for the same ``z`` (so the model can
+        reuse what it computed at that point)."""
+        if self._last[0] is not z:
+            self._last = (z, self.unit * z)
+        return self._last[1]
+
     def __call__(self, z, t, u, theta):
         s = self.unit
         if self.parametric:
-            return self.model(s * z, t, u, theta) / s
+            return self.model(self._user(z), t, u, theta) / s
         return self.model(s * z, t, u) / s
 
     def jacobian(self, z, t, u, theta):
         if self._own_jacobian:
             return self.model.jacobian(self.unit * z, t, u)
+        s = self.unit
+        if self.parametric and self.model.has_exact_correction_jacobian:
+            # finite differences of the assumed model only (steps in z); the
+            # correction's Jacobian is exact: d/dz [c(s z) / s] = c'(s z)
+            base = rowwise_jacobian(
+                lambda zz: self.model.base_part(s * zz, t, u, theta) / s, z
+            )
+            return base + self.model.correction_jacobian(self._user(z), u, theta)
         return rowwise_jacobian(lambda zz: self(zz, t, u, theta), z)
 
     def param_jacobian(self, z, t, u, theta):
         if not self.p:
             return np.zeros((z.shape[0], self.n, 0))
-        return self.model.param_jacobian(self.unit * z, t, u, theta) / self.unit
+        return self.model.param_jacobian(self._user(z), t, u, theta) / self.unit
 
 
 @dataclass

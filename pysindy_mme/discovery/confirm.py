@@ -52,6 +52,11 @@ MAX_ROUNDS = 4
 #: Gauss-Newton iterations allowed to a trial fit (the chosen model is
 #: polished with the full budget)
 TRIAL_ITER = 12
+#: iterations a trial gets before it must show it can compete
+TRIAL_FIRST = 4
+#: a trial fit stops at this relative predicted decrease (it is judged by a
+#: cost difference of many units when it matters)
+TRIAL_TOL = 1e-6
 #: look-alike functions tried in place of each term
 N_LOOK_ALIKES = 2
 
@@ -116,8 +121,34 @@ class _Search:
         return np.concatenate([fit.physical, np.asarray(coefs, float), fit.offsets])
 
     def refit(self, slots, coefs, start: OutputErrorFit, polish=False):
-        it = 50 if polish else TRIAL_ITER
-        fit = self.engine.fit(slots, self.theta(start, coefs), start.x, max_iter=it)
+        """Fit ``slots`` from ``start``'s trajectory with coefficients ``coefs``.
+
+        A trial (not ``polish``) first gets ``TRIAL_FIRST`` iterations; it is
+        carried on to ``TRIAL_ITER`` only if it is then within reach of the
+        current model (a trial that is still far worse after a few
+        Gauss-Newton steps from a warm start is not going to win, and on a
+        long record every iteration counts).
+        """
+        theta = self.theta(start, coefs)
+        if polish:
+            fit = self.engine.fit(slots, theta, start.x, max_iter=50, tol=1e-9)
+        else:
+            fit = self.engine.fit(
+                slots, theta, start.x, max_iter=TRIAL_FIRST, tol=TRIAL_TOL
+            )
+            reach = (
+                self.fit.cost * 1.05 + 10.0 if np.isfinite(self.fit.cost) else np.inf
+            )
+            if not fit.converged and fit.ok and fit.cost <= reach:
+                more = self.engine.fit(
+                    slots,
+                    fit.theta,
+                    fit.x,
+                    max_iter=TRIAL_ITER - fit.n_iter,
+                    tol=TRIAL_TOL,
+                )
+                more.n_iter += fit.n_iter
+                fit = more if more.ok else fit
         self.progress(
             f"  fit {len(slots)} term(s): cost {fit.cost:.6g}, {fit.n_iter} it."
         )
@@ -162,7 +193,6 @@ class _Search:
             cost=np.nan,
             n_residuals=0,
             n_free=0,
-            covariance=np.zeros((0, 0)),
             converged=False,
             message="",
             rank_deficient=False,

@@ -90,15 +90,34 @@ class OutputErrorFit:
     cost: float
     n_residuals: int
     n_free: int
-    covariance: np.ndarray
     converged: bool
     message: str
     rank_deficient: bool
     n_iter: int
     n_physical: int = 0
     n_offsets: int = 0
-    x0_covariance: np.ndarray | None = None
+    _cov: tuple | None = None
     _state: object = None
+    _engine: object = None
+
+    def _covariances(self):
+        # computed on first use: most trial fits are judged by their cost alone
+        if self._cov is None:
+            p, n = self.theta.size, self.x.shape[1]
+            self._cov = (
+                self._engine._covariance(self)
+                if self._engine is not None
+                else (np.full((p, p), np.nan), np.full((n, n), np.nan))
+            )
+        return self._cov
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._covariances()[0]
+
+    @property
+    def x0_covariance(self) -> np.ndarray:
+        return self._covariances()[1]
 
     @property
     def dof(self) -> int:
@@ -194,7 +213,7 @@ class OutputErrorModel:
         self.n_residuals = int(np.isfinite(self.y).sum())
 
     # ----------------------------------------------------------------- setup
-    def _solver(self, slots, theta0, max_iter):
+    def _solver(self, slots, theta0, max_iter, tol):
         model = ParametricModel(
             self.base,
             self.n_states,
@@ -218,21 +237,26 @@ class OutputErrorModel:
             u=self.inputs,
             n_substeps=self.n_substeps,
             max_iter=max_iter,
-            tol=1e-10,
+            tol=tol,
             theta_init=theta0,
             measurement_offsets=offsets,
         )
 
-    def fit(self, slots, theta0, x_start, max_iter: int = 50) -> OutputErrorFit:
+    def fit(
+        self, slots, theta0, x_start, max_iter: int = 50, tol: float = 1e-9
+    ) -> OutputErrorFit:
         """Fit the initial state and ``theta`` from a starting trajectory.
 
         A fit whose model blows up along the way, or cannot be linearised,
         is returned with an infinite cost and ``converged=False`` (its
         message says why), so that callers reject it instead of crashing.
+        ``tol`` is the relative predicted decrease of the cost at which
+        Gauss-Newton stops (1e-9 of a chi-square of ``N`` is far below one
+        unit: negligible for every test).
         """
         slots = tuple((int(i), int(c)) for i, c in slots)
         theta0 = np.asarray(theta0, dtype=float)
-        solver = self._solver(slots, theta0, max_iter)
+        solver = self._solver(slots, theta0, max_iter, tol)
         try:
             res = solver.solve(None, solver.start_from(x_start, theta0))
         except (DivergenceError, np.linalg.LinAlgError, FloatingPointError) as exc:
@@ -256,7 +280,6 @@ class OutputErrorModel:
             cost=float(res.measurement_cost),
             n_residuals=self.n_residuals,
             n_free=self.n_states + res.theta.size,
-            covariance=np.full((res.theta.size,) * 2, np.nan),
             converged=converged,
             message=message,
             rank_deficient=res.rank_deficient,
@@ -264,8 +287,8 @@ class OutputErrorModel:
             n_physical=self.n_physical,
             n_offsets=self.n_offsets,
             _state=(solver, res),
+            _engine=self,
         )
-        fit.covariance, fit.x0_covariance = self._covariance(fit)
         return fit
 
     def fit_held(self, slots, theta, x_start, max_iter: int = 50) -> OutputErrorFit:
@@ -306,7 +329,6 @@ class OutputErrorModel:
             cost=fit.cost,
             n_residuals=fit.n_residuals,
             n_free=fit.n_free,
-            covariance=np.full((theta.size, theta.size), np.nan),
             converged=fit.converged,
             message=fit.message + " (parameters held)",
             rank_deficient=False,
@@ -317,7 +339,6 @@ class OutputErrorModel:
 
     def _failed(self, slots, theta0, x_start, message):
         p = theta0.size
-        n = self.n_states
         return OutputErrorFit(
             slots=slots,
             theta=theta0,
@@ -325,15 +346,60 @@ class OutputErrorModel:
             cost=np.inf,
             n_residuals=self.n_residuals,
             n_free=self.n_states + p,
-            covariance=np.full((p, p), np.nan),
             converged=False,
             message=message,
             rank_deficient=False,
             n_iter=0,
             n_physical=self.n_physical,
             n_offsets=self.n_offsets,
-            x0_covariance=np.full((n, n), np.nan),
         )
+
+    def with_substeps(self, n_substeps: int) -> OutputErrorModel:
+        """The same record and model, integrated with ``n_substeps``."""
+        return OutputErrorModel(
+            self.base,
+            self.n_states,
+            self.features,
+            self.y,
+            self.t,
+            self.inputs,
+            self.R,
+            self.measurement,
+            self.n_physical,
+            self.n_offsets,
+            n_substeps,
+        )
+
+    def integrator_effect(self, fit: OutputErrorFit):
+        """How far the fit would move with twice the RK4 steps (linearised).
+
+        The finer integrator changes each interval's flow by
+        ``Phi_fine - Phi``; one Gauss-Newton step of the finer problem from
+        this solution (the factorised KKT system of the fit, one bordered
+        solve) gives the change of the parameters and of the trajectory.
+        Returns ``(dtheta, largest trajectory change in noise standard
+        deviations)``; NaN when the fit has no KKT system.
+        """
+        p = fit.theta.size
+        if fit._state is None:
+            return np.full(p, np.nan), np.nan
+        solver, res, (fac, _, _, E, D) = self._kkt_at(fit)
+        finer = self.with_substeps(2 * self.n_substeps)._solver(
+            fit.slots, fit.theta, 1, 1e-9
+        )
+        x = res.x / solver.unit
+        d = np.zeros((solver.N - 1, 0))
+        with np.errstate(all="ignore"):
+            change = finer.flow(x, d, res.theta, jacobian=False) - solver.flow(
+                x, d, res.theta, jacobian=False
+            )
+        if not np.all(np.isfinite(change)):
+            return np.full(p, np.inf), np.inf
+        rhs = np.zeros((solver.N, 2 * solver.n))
+        rhs[:-1, solver.n :] = -change
+        sol = solve_reduced(fac, E, D, rhs, np.zeros(p))
+        sd = np.sqrt(np.mean(np.diag(self.R))) / solver.unit
+        return sol.dtheta, float(np.max(np.abs(sol.z[:, : solver.n]))) / sd
 
     # ------------------------------------------------------------ statistics
     def _kkt_at(self, fit):

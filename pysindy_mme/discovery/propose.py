@@ -19,6 +19,39 @@ from ..core.features import SelectedFeatures
 __all__ = ["Proposals", "propose_terms"]
 
 
+class LibraryColumns:
+    """Columns of a fitted library at any points; ``constant`` is a column of ones.
+
+    ``columns(z, cols)`` evaluates, ``columns.gradient(z, cols)`` differentiates
+    (``(n_rows, len(cols), n_vars)``): what an output-error model needs of its
+    correction terms.
+    """
+
+    def __init__(self, features: SelectedFeatures, constant: int):
+        self.features, self.constant = features, constant
+
+    def _split(self, columns):
+        lib = [int(c) for c in columns if c != self.constant]
+        where = [k for k, c in enumerate(columns) if c != self.constant]
+        return lib, where
+
+    def __call__(self, z, columns):
+        lib, where = self._split(columns)
+        values = self.features(z, lib) if lib else np.zeros((len(z), 0))
+        if len(lib) == len(columns):
+            return values
+        out = np.ones((len(z), len(columns)))
+        out[:, where] = values
+        return out
+
+    def gradient(self, z, columns):
+        lib, where = self._split(columns)
+        out = np.zeros((len(z), len(columns), z.shape[1]))
+        if lib:
+            out[:, where] = self.features.gradient(z, lib)
+        return out
+
+
 @dataclass
 class Proposals:
     """What the regression of ``d(t)`` proposes.
@@ -77,17 +110,10 @@ class Proposals:
     def name(self, column: int) -> str:
         return "1" if column == self.constant_column else self.feature_names[column]
 
-    def evaluate(self, z, columns):
-        """Library columns (the constant slot included) at ``z``."""
-        lib = [c for c in columns if c != self.constant_column]
-        values = (
-            self.features(z, [int(c) for c in lib]) if lib else np.zeros((len(z), 0))
-        )
-        if len(lib) == len(columns):
-            return values
-        out = np.ones((len(z), len(columns)))
-        out[:, [k for k, c in enumerate(columns) if c != self.constant_column]] = values
-        return out
+    @property
+    def evaluate(self) -> LibraryColumns:
+        """Library columns (the constant slot included), with their gradient."""
+        return LibraryColumns(self.features, self.constant_column)
 
     def candidate_terms(self, state_names) -> dict:
         """``{state: {feature: regression coefficient}}`` of the proposals."""

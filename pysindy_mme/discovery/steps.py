@@ -228,20 +228,16 @@ def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None
     A coefficient that moves by more than half its standard error, or a
     cost that changes by more than one unit (of chi-square), means the
     result depends on the integrator (a stiff or non-smooth model): said so.
+    The refit is skipped when its linearised prediction
+    (:meth:`OutputErrorModel.integrator_effect`) moves no parameter by a
+    tenth of its standard error and the trajectory by less than a tenth of
+    the noise.
     """
-    finer = OutputErrorModel(
-        engine.base,
-        engine.n_states,
-        engine.features,
-        engine.y,
-        engine.t,
-        engine.inputs,
-        engine.R,
-        engine.measurement,
-        engine.n_physical,
-        engine.n_offsets,
-        n_substeps=2 * engine.n_substeps,
-    )
+    dtheta, dx = engine.integrator_effect(fit)
+    se = fit.std_errors
+    if dx < 0.1 and np.all(np.abs(dtheta) < 0.1 * np.where(np.isfinite(se), se, 0.0)):
+        return None
+    finer = engine.with_substeps(2 * engine.n_substeps)
     check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=20)
     if not check.ok:
         return (

@@ -292,6 +292,7 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
                 "the output-error refit of the extended model did not converge "
                 f"({fit.message}); its coefficients may be inaccurate"
             )
+        _ = fit.covariance  # computed now: it tells whether the fit is rank deficient
         if fit.rank_deficient:
             notes.append(
                 "some coefficients of the extended model are not determined by the "
