@@ -28,6 +28,7 @@ __all__ = [
     "quadratic_drag",
     "forced_oscillator",
     "lorenz",
+    "rossler",
     "all_systems",
 ]
 
@@ -396,6 +397,39 @@ def lorenz(
     )
 
 
+def rossler(a: float = 0.2, b: float = 0.2, c: float = 5.7) -> HiddenEffectSystem:
+    """Rossler's chaotic flow; only ``y`` is measured and ``x z`` is missing in z'.
+
+    Truth ``x' = -y - z``, ``y' = x + a y``, ``z' = b + z (x - c)``; the
+    assumed model has ``z' = b - c z``. Thirty time units (about five
+    orbits) at 20 Hz; ``x`` and ``z`` are never measured, so the missing
+    coupling is seen only through ``y``.
+    """
+
+    def true_model(x, t):
+        xx, yy, zz = x[:, 0], x[:, 1], x[:, 2]
+        return np.column_stack([-yy - zz, xx + a * yy, b + zz * (xx - c)])
+
+    def assumed_model(x, t):
+        xx, yy, zz = x[:, 0], x[:, 1], x[:, 2]
+        return np.column_stack([-yy - zz, xx + a * yy, b - c * zz])
+
+    return HiddenEffectSystem(
+        name="rossler",
+        description="Rossler flow; the x z coupling in z' is missing, y measured",
+        state_names=("x", "y", "z"),
+        true_model=true_model,
+        assumed_model=assumed_model,
+        x0=(1.0, 1.0, 0.0),
+        t_end=30.0,
+        rate_hz=20.0,
+        measured=(1,),
+        error_states=(2,),
+        noise_variance=0.04,
+        hidden_terms={"z": {"x z": 1.0}},
+    )
+
+
 def all_systems() -> list:
     """Every example system with its default parameters."""
     return [
@@ -405,4 +439,5 @@ def all_systems() -> list:
         quadratic_drag(),
         forced_oscillator(),
         lorenz(),
+        rossler(),
     ]

@@ -34,7 +34,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-__all__ = ["BandedKKT", "KKTFactor", "solve_reduced"]
+__all__ = [
+    "BandedKKT",
+    "KKTFactor",
+    "equilibrated_inverse",
+    "solve_reduced",
+    "undetermined",
+]
 
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
@@ -142,7 +148,31 @@ class ReducedSolution:
     rank_deficient: bool
 
 
-def equilibrated_inverse(Sc: np.ndarray, rcond: float = 1e-12):
+def undetermined(Sc: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
+    """Which parameters take part in a direction ``Sc`` does not determine.
+
+    Boolean mask: parameters with a component above 1e-3 in an eigenvector
+    of the equilibrated ``Sc`` whose eigenvalue is below ``rcond`` times the
+    largest (or a zero or non-finite diagonal).
+    """
+    p = Sc.shape[0]
+    if p == 0:
+        return np.zeros(0, bool)
+    diag = np.abs(np.diag(Sc))
+    good = np.isfinite(diag) & (diag > 0)
+    scale = np.where(good, 1.0 / np.sqrt(np.where(good, diag, 1.0)), 0.0)
+    scaled = 0.5 * (Sc + Sc.T) * scale[:, None] * scale[None, :]
+    if not np.all(np.isfinite(scaled)):
+        return np.ones(p, bool)
+    w, V = np.linalg.eigh(scaled)
+    weak = w <= rcond * max(float(np.max(w)), 0.0)
+    mask = ~good
+    if np.any(weak):
+        mask |= np.any(np.abs(V[:, weak]) > 1e-3, axis=1)
+    return mask
+
+
+def equilibrated_inverse(Sc: np.ndarray, rcond: float = 1e-10):
     """``Sc^-1`` via unit-diagonal scaling and a symmetric eigendecomposition.
 
     Returns ``(inverse, rank_deficient)``. Directions with eigenvalues below

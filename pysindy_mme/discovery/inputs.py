@@ -10,13 +10,14 @@ first evaluation of the model), so a bad argument never waits for a solver.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from sklearn.base import clone
 
 from ..core import validation as val
 from ..core.integrate import HOLDS, InputSignal
+from ..core.libraries import fresh_library
 from ..differentiation import MME
 
 __all__ = ["Study", "check_study", "MME_KEYWORDS"]
@@ -63,7 +64,31 @@ class Study:
         Starting trajectory from the data alone: measured states as measured
         (interpolated over gaps), the others zero.
     validation_window : int
+    raw_model : callable or None
+        The grey-box ``f(x, t, u, p)`` when ``parameter_names`` are given.
+    parameter_names : list of str; parameter_init : ndarray
+        The assumed model's parameters to estimate, and their initial guesses.
+    offsets : bool
+        Estimate a constant offset per measured channel.
     """
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.parameter_names)
+
+    def assumed_at(self, values):
+        """The assumed model ``f(x, t[, u])`` with its parameters at ``values``."""
+        if not self.parameter_names:
+            return self.mme.assumed_model
+        return AtParameters(self.raw_model, self.parameter_names, values)
+
+    def model_at(self, values):
+        """:meth:`assumed_at` as a checked :class:`ModelFunction`."""
+        if not self.parameter_names:
+            return self.model
+        from ..core.model import as_model_function
+
+        return as_model_function(self.assumed_at(values), self.n_states)
 
     y: np.ndarray
     t: np.ndarray
@@ -87,6 +112,10 @@ class Study:
     assumed_equations: list | None
     x_init: np.ndarray
     validation_window: int = 50
+    raw_model: object = None
+    parameter_names: list = field(default_factory=list)
+    parameter_init: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    offsets: bool = False
 
     @property
     def n_inputs(self) -> int:
@@ -122,8 +151,12 @@ def _optimizer(optimizer):
     return optimizer
 
 
-def _estimator(mme, given: dict, u, input_hold):
-    """The user's MME, or one built from discover's keywords (not both)."""
+def _estimator(mme, given: dict, u, input_hold, parameters: dict):
+    """The user's MME, or one built from discover's keywords (not both).
+
+    With grey-box ``parameters`` the estimator gets the model at their
+    initial values (step 2 moves them to the fitted ones).
+    """
     if mme is not None:
         if not isinstance(mme, MME):
             raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
@@ -151,14 +184,76 @@ def _estimator(mme, given: dict, u, input_hold):
         raise ValueError(
             f"noise_variance must be a number, an array or 'auto', got {noise!r}"
         )
+    if parameters:
+        given = dict(given)
+        raw = given["assumed_model"]
+        if not callable(raw):
+            raise TypeError(
+                "with parameters, assumed_model must be a callable f(x, t, u, p)"
+            )
+        given["assumed_model"] = AtParameters(raw, parameters, parameters.values())
     return MME(u=u, input_hold=input_hold, **given)
 
 
-def _names(feature_names, n_states, n_inputs):
+def _parameters(parameters) -> dict:
+    """``{name: initial value}``, checked (names are strings, values finite)."""
+    if parameters is None:
+        return {}
+    if not isinstance(parameters, dict) or not parameters:
+        raise TypeError(
+            "parameters must be a non-empty dict {name: initial guess}, e.g. "
+            f"{{'k': 1.0, 'c': 0.1}}; got {parameters!r}"
+        )
+    out = {}
+    for name, value in parameters.items():
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"parameters: names must be strings, got {name!r}")
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise TypeError(
+                f"parameters: {name} must be a number, got {value!r}"
+            ) from None
+        if not np.isfinite(v):
+            raise ValueError(f"parameters: {name} must be finite, got {value!r}")
+        out[name] = v
+    return out
+
+
+class AtParameters:
+    """The user's grey-box ``f(x, t, u, p)`` at fixed parameter values.
+
+    A plain ``f(x, t, u)`` for the estimator and the simulations; ``p`` is a
+    dict ``{name: value}``.
+    """
+
+    def __init__(self, model, names, values):
+        self.model = model
+        self.values = dict(zip(names, (float(v) for v in values)))
+
+    def __call__(self, x, t, u):
+        return self.model(x, t, u, self.values)
+
+
+def _columns(frame):
+    """Column names of a pandas DataFrame (or anything with ``.columns``)."""
+    cols = getattr(frame, "columns", None)
+    return None if cols is None else [str(c) for c in cols]
+
+
+def _names(feature_names, n_states, n_inputs, measured=None, y_cols=None, u_cols=None):
+    """State and input names: given, else from DataFrame columns, else x0, u0."""
     if feature_names is None:
-        feature_names = [f"x{i}" for i in range(n_states)] + [
-            f"u{i}" for i in range(n_inputs)
-        ]
+        states = [f"x{i}" for i in range(n_states)]
+        if y_cols is not None and measured is not None and len(y_cols) == len(measured):
+            for name, i in zip(y_cols, measured):
+                states[i] = name
+        inputs = (
+            u_cols
+            if u_cols is not None and len(u_cols) == n_inputs
+            else [f"u{i}" for i in range(n_inputs)]
+        )
+        feature_names = states + inputs
     feature_names = [str(n) for n in feature_names]
     if len(feature_names) != n_states + n_inputs:
         raise ValueError(
@@ -214,7 +309,8 @@ def _count_inputs(u, t) -> int:
 def _check_size(library, y, n_vars):
     """The library size bounds what a record can support: fail now, not later."""
     probe = np.zeros((min(y.shape[0], 8), n_vars)) + 0.5
-    n_features = np.asarray(clone(library).fit(probe).transform(probe)).shape[1]
+    lib = fresh_library(library).fit(probe)
+    n_features = np.asarray(lib.transform(probe)).shape[1]
     n_finite = int(np.sum(np.all(np.isfinite(y), axis=1)))
     needed = n_features + 2
     if n_finite < needed:
@@ -239,9 +335,12 @@ def check_study(
     assumed_equations=None,
     input_hold="linear",
     validation_window=50,
+    parameters=None,
+    offsets=False,
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
+    y_cols, u_cols = _columns(y), _columns(u)
     y = val.as_float_array(y, "y", ndim=(1, 2), allow_nan=True)
     if y.ndim == 1:
         y = y[:, None]
@@ -255,7 +354,14 @@ def check_study(
     if input_hold not in HOLDS:
         raise ValueError(f"input_hold must be 'linear' or 'zoh', got {input_hold!r}")
     u = _inputs_array(u, n_samples)
-    est = _estimator(mme, mme_keywords, u, input_hold)
+    params = _parameters(parameters)
+    if params and mme is not None:
+        raise ValueError(
+            "parameters need assumed_model=f(x, t, u, p) given to discover, not mme="
+        )
+    if not isinstance(offsets, (bool, np.bool_)):
+        raise TypeError(f"offsets must be True or False, got {offsets!r}")
+    est = _estimator(mme, mme_keywords, u, input_hold, params)
     n_states = est.n_states
     if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
         raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
@@ -276,7 +382,19 @@ def check_study(
         )
     u_est = est.u if u is None else u
     n_inputs = _count_inputs(u_est, t)
-    state_names, input_names = _names(feature_names, int(n_states), n_inputs)
+    default_measured = (
+        est.measured
+        if est.measured is not None
+        else (range(n_states) if est.measurement_matrix is None else None)
+    )
+    state_names, input_names = _names(
+        feature_names,
+        int(n_states),
+        n_inputs,
+        None if default_measured is None else list(default_measured),
+        y_cols,
+        u_cols,
+    )
     library = _library(feature_library)
     optimizer = _optimizer(optimizer)
     validation = _validation(validation, y.shape[1], n_inputs)
@@ -332,4 +450,8 @@ def check_study(
         else list(assumed_equations),
         x_init=problem.smoother.initial_guess()[0][:, : int(n_states)],
         validation_window=int(window),
+        raw_model=mme_keywords["assumed_model"] if params else None,
+        parameter_names=list(params),
+        parameter_init=np.array(list(params.values()), dtype=float),
+        offsets=bool(offsets),
     )

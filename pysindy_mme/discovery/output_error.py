@@ -44,7 +44,7 @@ from scipy import stats
 
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel
-from ..differentiation.kkt import equilibrated_inverse, solve_reduced
+from ..differentiation.kkt import equilibrated_inverse, solve_reduced, undetermined
 from ..differentiation.transcription import MMESmoother
 from ..exceptions import DivergenceError
 
@@ -431,11 +431,12 @@ class OutputErrorModel:
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
         if not p:
             return np.zeros((0, 0)), x0_cov
-        inverse, deficient = equilibrated_inverse(sol.Sc)
+        inverse, _ = equilibrated_inverse(sol.Sc)
         cov = inverse * s2
-        if deficient:
-            # a direction the data do not determine: its variance is unknown
-            bad = np.diag(cov) <= 0
+        bad = undetermined(sol.Sc)
+        if np.any(bad):
+            # a direction the data do not determine (two parameters doing one
+            # job): the variances of the parameters in it are unknown
             cov[bad, :] = np.nan
             cov[:, bad] = np.nan
             fit.rank_deficient = True

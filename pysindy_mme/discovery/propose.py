@@ -15,6 +15,7 @@ import numpy as np
 from sklearn.base import clone
 
 from ..core.features import SelectedFeatures
+from ..core.libraries import fresh_library
 
 __all__ = ["Proposals", "propose_terms"]
 
@@ -189,7 +190,7 @@ def flag_library_columns(theta):
 def propose_terms(study, x_hat, d_hat) -> Proposals:
     """Regress ``d_hat`` of the error states on the library at ``x_hat``."""
     z_hat = x_hat if study.u is None else np.hstack([x_hat, study.u])
-    library = clone(study.library).fit(z_hat)
+    library = fresh_library(study.library).fit(z_hat)
     with np.errstate(all="ignore"):
         theta = np.asarray(library.transform(z_hat))
     names = list(library.get_feature_names(study.feature_names))

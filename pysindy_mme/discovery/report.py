@@ -99,8 +99,39 @@ def _terms_text(terms: dict) -> str:
     return " ".join(parts)
 
 
+def _parameters(res) -> list:
+    if not res.parameters:
+        return []
+    rows = [
+        [
+            name,
+            sig(pe.initial),
+            sig(pe.assumed_fit),
+            sig(pe.value),
+            f"[{sig(pe.ci_low)}, {sig(pe.ci_high)}]",
+            f"{signed(100 * pe.change, 3)}%",
+        ]
+        for name, pe in res.parameters.items()
+    ]
+    return [
+        "Parameters of the assumed model, fitted to the measurements (not "
+        "missing effects):",
+        text_table(
+            [
+                "parameter",
+                "guess",
+                "fit (assumed)",
+                "fit (extended)",
+                "95% CI",
+                "change",
+            ],
+            rows,
+        ),
+    ]
+
+
 def _cause(res) -> list:
-    out = ["2. The cause", "-" * 12]
+    out = ["2. The cause", "-" * 12] + _parameters(res)
     contradicted = res.consistency_p_value < res.alpha
     for state, terms in res.terms.items():
         if terms:

@@ -8,7 +8,7 @@ import numpy as np
 
 from .report import format_discovery
 
-__all__ = ["Discovery", "TermEstimate"]
+__all__ = ["Discovery", "ParameterEstimate", "TermEstimate"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,37 @@ class TermEstimate:
     rms_term: float = float("nan")
     share_of_correction: float = float("nan")
     share_of_dynamics: float = float("nan")
+
+
+@dataclass(frozen=True)
+class ParameterEstimate:
+    """One parameter of the assumed model (grey box), fitted to the data.
+
+    Attributes
+    ----------
+    name : str
+    initial : float
+        The user's guess.
+    assumed_fit : float
+        Fitted with the assumed model alone (step 1).
+    value : float
+        Fitted jointly with the correction (the extended model's value).
+    std_error, ci_low, ci_high : float
+        Of ``value`` (95 % interval; NaN when not determined).
+    """
+
+    name: str
+    initial: float
+    assumed_fit: float
+    value: float
+    std_error: float
+    ci_low: float
+    ci_high: float
+
+    @property
+    def change(self) -> float:
+        """Relative change of ``value`` from ``initial``."""
+        return (self.value - self.initial) / self.initial if self.initial else np.nan
 
 
 @dataclass
@@ -135,6 +166,35 @@ class Discovery:
         return self.assumed.fit.x if fit is None else fit.x
 
     @property
+    def parameters(self) -> dict:
+        """``{name: ParameterEstimate}`` of the assumed model's parameters."""
+        names = self.study.parameter_names
+        if not names:
+            return {}
+        fit = self.extended_fit or self.assumed.fit
+        ci = fit.confidence_intervals()
+        se = fit.std_errors
+        out = {}
+        for k, name in enumerate(names):
+            out[name] = ParameterEstimate(
+                name=name,
+                initial=float(self.study.parameter_init[k]),
+                assumed_fit=float(self.assumed.fit.physical[k]),
+                value=float(fit.physical[k]),
+                std_error=float(se[k]) if se[k] > 0 else float("nan"),
+                ci_low=float(ci[k, 0]),
+                ci_high=float(ci[k, 1]),
+            )
+        return out
+
+    @property
+    def offsets(self) -> np.ndarray | None:
+        """Fitted constant offset per measured channel (``offsets=True``)."""
+        if not self.study.offsets:
+            return None
+        return (self.extended_fit or self.assumed.fit).offsets
+
+    @property
     def candidate_terms(self) -> dict:
         return self.proposals.candidate_terms(self.state_names)
 
@@ -208,6 +268,13 @@ class Discovery:
                 for te in self.term_estimates
             ],
             "verdict": self.verdict,
+            "parameters": {
+                k: {
+                    f: (plain(v) if isinstance(v, float) else v)
+                    for f, v in vars(pe).items()
+                }
+                for k, pe in self.parameters.items()
+            },
             "extended_model": self.extended_model.equations(),
             "gain": self.gain.to_dict(),
             "warnings": list(self.warnings),

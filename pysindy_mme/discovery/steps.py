@@ -22,7 +22,7 @@ from scipy import stats
 from sklearn.base import clone
 
 from ..core.integrate import InputSignal
-from ..core.model import rowwise_jacobian
+from ..core.model import ParametricModel, rowwise_jacobian
 from .confirm import Confirmation, confirm_terms
 from .gain import Gain, free_run, rmse
 from .output_error import OutputErrorFit, OutputErrorModel
@@ -32,6 +32,7 @@ __all__ = [
     "ErrorEstimate",
     "fit_assumed_model",
     "baseline",
+    "set_aside_parameter_duplicates",
     "estimate_model_error",
     "confirm_on_measurements",
     "measure_gain",
@@ -66,7 +67,17 @@ class ErrorEstimate:
 
 
 def _base(study):
-    """The assumed model as ``(x, t, u, p) -> dx/dt`` (validated, unchecked)."""
+    """The assumed model as ``(x, t, u, p) -> dx/dt`` (validated, unchecked);
+    ``p`` its grey-box parameters (empty without)."""
+    if study.parameter_names:
+        raw, names = study.raw_model, study.parameter_names
+
+        def grey(x, t, u, p):
+            tt = np.broadcast_to(np.asarray(t, dtype=float), (x.shape[0],))
+            values = dict(zip(names, (float(v) for v in p)))
+            return np.asarray(raw(x, tt, u, values), dtype=float).reshape(x.shape)
+
+        return grey
     f = study.model.unchecked()
 
     def base(x, t, u, p):
@@ -104,8 +115,16 @@ def output_error_engine(study, features, substeps) -> OutputErrorModel:
         study.inputs,
         study.noise_cov,
         study.measurement,
+        n_physical=study.n_parameters,
+        n_offsets=study.y.shape[1] if study.offsets else 0,
         n_substeps=substeps,
     )
+
+
+def initial_theta(study) -> np.ndarray:
+    """``[parameters, offsets]`` to start the assumed model's fit from."""
+    offsets = np.zeros(study.y.shape[1] if study.offsets else 0)
+    return np.concatenate([study.parameter_init, offsets])
 
 
 def fit_assumed_model(study) -> AssumedFit:
@@ -120,7 +139,8 @@ def fit_assumed_model(study) -> AssumedFit:
 
     substeps = rk4_substeps(study, rows, study.x_init, study.t)
     engine = output_error_engine(study, None, substeps)
-    return _assumed_fit(study, engine.fit((), np.zeros(0), study.x_init), substeps)
+    fit = engine.fit((), initial_theta(study), study.x_init)
+    return _assumed_fit(study, fit, substeps)
 
 
 def _rows(u, stride, x):
@@ -156,18 +176,25 @@ def baseline(study, assumed: AssumedFit, engine: OutputErrorModel, x_hat) -> Ass
     """
     if engine.n_substeps == assumed.substeps and assumed.fit.converged:
         return assumed
-    fits = [
-        engine.fit((), np.zeros(0), assumed.fit.x),
-        engine.fit((), np.zeros(0), x_hat),
-    ]
+    theta = assumed.fit.theta if assumed.fit.ok else initial_theta(study)
+    fits = [engine.fit((), theta, assumed.fit.x), engine.fit((), theta, x_hat)]
     best = min(fits, key=lambda f: (not f.converged, f.cost))
     return _assumed_fit(study, best, engine.n_substeps)
 
 
-def estimate_model_error(study) -> ErrorEstimate:
-    """Step 2: MME on the fitting record."""
+def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
+    """Step 2: MME on the fitting record.
+
+    The assumed model enters with the parameters (and the measurements
+    without the offsets) that step 1 fitted.
+    """
     mme = clone(study.mme)
-    mme.fit(study.y, study.t, study.inputs.u)
+    y = study.y
+    if study.n_parameters:
+        mme.set_params(assumed_model=study.assumed_at(assumed.fit.physical))
+    if study.offsets and assumed.fit.ok:
+        y = study.y - assumed.fit.offsets
+    mme.fit(y, study.t, study.inputs.u)
     notes = (
         []
         if mme.converged_
@@ -175,7 +202,7 @@ def estimate_model_error(study) -> ErrorEstimate:
     )
     x_hat = np.asarray(mme.smoothed_x_)
     d_hat = np.asarray(mme.d_)
-    f_hat = study.model(x_hat, study.t, study.u)
+    f_hat = study.model_at(assumed.fit.physical)(x_hat, study.t, study.u)
     summary = {}
     for i in study.error_states:
         rms_d = float(np.sqrt(np.mean(d_hat[:, i] ** 2)))
@@ -186,6 +213,49 @@ def estimate_model_error(study) -> ErrorEstimate:
             "share": rms_d / rms_total if rms_total > 0 else float("nan"),
         }
     return ErrorEstimate(mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes)
+
+
+def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:
+    """Library terms that only re-do a parameter of the assumed model.
+
+    With grey-box parameters, a library function whose effect on an
+    equation is the same as a parameter's (``x1`` in ``x2'`` when the model
+    has ``-k x1``: correlation above 0.9999 along the estimated trajectory)
+    would only re-estimate that parameter: it is neither proposed nor
+    offered, and the report says why (``proposals.rejected``).
+    """
+    if not study.n_parameters:
+        return
+    base = _base(study)
+    u = study.u
+    sens = ParametricModel(base, study.n_states, study.n_parameters).param_jacobian(
+        x_hat, study.t, u, np.asarray(p_hat, dtype=float)
+    )
+    z = x_hat if u is None else np.hstack([x_hat, u])
+    duplicates = {}
+    for state, col in {*proposals.slots, *proposals.candidates}:
+        with np.errstate(all="ignore"):
+            phi = proposals.evaluate(z, [col])[:, 0]
+        for k, name in enumerate(study.parameter_names):
+            g = sens[:, state, k]
+            if np.std(phi) > 0 and np.std(g) > 0:
+                r = abs(np.corrcoef(phi, g)[0, 1])
+                if r > 0.9999:
+                    duplicates[(state, col)] = (
+                        f"duplicates the assumed model's parameter {name} (its change "
+                        "is reported as a parameter, not as a missing effect)"
+                    )
+    keep = [
+        (s, v)
+        for s, v in zip(proposals.slots, proposals.start_values)
+        if s not in duplicates
+    ]
+    proposals.rejected.extend(
+        (s, duplicates[s]) for s in proposals.slots if s in duplicates
+    )
+    proposals.slots = [s for s, _ in keep]
+    proposals.start_values = [v for _, v in keep]
+    proposals.candidates = [c for c in proposals.candidates if c not in duplicates]
 
 
 def confirm_on_measurements(
@@ -274,10 +344,11 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
     ``models``: the same keys, ``(x, t, u) -> dx/dt`` row-wise.
     """
     measure = _measure(study)
+    a, e = fits["assumed"], fits["extended"]
     gain = Gain(
         channel_names=study.channel_names,
-        rmse_assumed=rmse(study.y, measure(fits["assumed"].x)),
-        rmse_extended=rmse(study.y, measure(fits["extended"].x)),
+        rmse_assumed=rmse(study.y, measure(a.x) + _offsets(study, a)),
+        rmse_extended=rmse(study.y, measure(e.x) + _offsets(study, e)),
         noise_floor=np.sqrt(np.diag(study.noise_cov)),
     )
     if study.validation is None:
@@ -293,6 +364,10 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
                 f"t = {run.diverged_at:.6g}: it has no validation RMSE"
             )
     return gain
+
+
+def _offsets(study, fit):
+    return fit.offsets if study.offsets else np.zeros(study.y.shape[1])
 
 
 def _measure(study):
@@ -318,6 +393,7 @@ def validation_runs(study, models: dict, features, substeps) -> dict:
         def base(x, t, u, p, model_rhs=model_rhs):
             return model_rhs(x, t, u)
 
+        m_off = y_v.shape[1] if study.offsets else 0
         window_fit = OutputErrorModel(
             base,
             study.n_states,
@@ -327,10 +403,16 @@ def validation_runs(study, models: dict, features, substeps) -> dict:
             inputs_v.subset(0, window),
             study.noise_cov,
             study.measurement,
+            n_offsets=m_off,
             n_substeps=substeps,
-        ).fit((), np.zeros(0), x_start)
+        ).fit((), np.zeros(m_off), x_start)
         x0 = window_fit.x[0]
+        offsets = window_fit.offsets if m_off else 0.0
+
+        def shifted(x, offsets=offsets):
+            return measure(x) + offsets
+
         runs[name] = free_run(
-            _frozen(study, model_rhs), x0, t_v, inputs_v, substeps, measure, y_v, window
+            _frozen(study, model_rhs), x0, t_v, inputs_v, substeps, shifted, y_v, window
         )
     return runs

@@ -24,6 +24,7 @@ from .steps import (
     measure_gain,
     output_error_engine,
     rk4_substeps,
+    set_aside_parameter_duplicates,
     step_size_check,
 )
 
@@ -52,6 +53,8 @@ def discover(
     mme=None,
     input_hold="linear",
     validation_window=50,
+    parameters=None,
+    offsets=False,
     verbose=False,
 ):
     """Find what an assumed model gets wrong, name the cause, fix it, measure it.
@@ -108,6 +111,18 @@ def discover(
     validation_window : int, default 50
         Leading samples of the validation record used to estimate the initial
         state; the validation RMSE is taken over the rest.
+    parameters : dict, optional
+        Grey box: the assumed model's unknown parameters with initial guesses,
+        ``{"k": 1.0, "c": 0.1}``; ``assumed_model`` is then called as
+        ``f(x, t, u, p)`` (``u`` None without inputs) with ``p`` a dict of
+        their current values. They are fitted to the measurements first
+        (step 1), MME runs with the fitted values, and they are refitted
+        jointly with the correction; the report gives them with confidence
+        intervals apart from the missing effects. A library term that only
+        re-estimates one of them cannot enter (it is collinear with it).
+    offsets : bool, default False
+        Estimate a constant offset per measured channel (``y = g(x) + o``)
+        instead of letting the dynamics absorb it.
     verbose : bool
         Report each stage on standard error (stages are always logged to the
         ``"pysindy_mme"`` logger).
@@ -130,6 +145,8 @@ def discover(
         assumed_equations=assumed_equations,
         input_hold=input_hold,
         validation_window=validation_window,
+        parameters=parameters,
+        offsets=offsets,
         assumed_model=assumed_model,
         n_states=n_states,
         measured=measured,
@@ -142,20 +159,22 @@ def discover(
     progress.stage(f"checked: {study.t.size} samples, {study.n_states} states")
     assumed = fit_assumed_model(study)  # 1
     progress.stage(f"1. assumed model: chi2 = {assumed.chi2:.6g} on {assumed.dof} dof")
-    estimate = estimate_model_error(study)  # 2
+    estimate = estimate_model_error(study, assumed)  # 2
     progress.stage(f"2. MME: W = {np.asarray(estimate.mme.W_)}")
     proposals = propose_terms(study, estimate.x, estimate.d)  # 3
+    set_aside_parameter_duplicates(study, proposals, estimate.x, assumed.fit.physical)
     progress.stage(f"3. regression of d(t) proposes {len(proposals.slots)} term(s)")
-    substeps = max(assumed.substeps, _substeps(study, proposals, estimate.x))
+    substeps = max(assumed.substeps, _substeps(study, assumed, proposals, estimate.x))
     engine = output_error_engine(study, proposals.evaluate, substeps)
     assumed = baseline(study, assumed, engine, estimate.x)
     confirmation = confirm_on_measurements(  # 4
         study, engine, assumed, estimate, proposals, progress.step
     )
     progress.stage(f"4. confirmed {len(confirmation.slots)} term(s)")
-    extended = _extended_model(study, proposals, confirmation, estimate.x)
-    fits = {"assumed": assumed.fit, "extended": confirmation.fit or assumed.fit}
-    models = {"assumed": study.model, "extended": extended}
+    extended_fit = confirmation.fit or assumed.fit
+    extended = _extended_model(study, proposals, confirmation, extended_fit, estimate.x)
+    fits = {"assumed": assumed.fit, "extended": extended_fit}
+    models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
     progress.stage("5. gain measured")
     notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
@@ -178,15 +197,16 @@ def discover(
     )
 
 
-def _substeps(study, proposals, x_hat) -> int:
+def _substeps(study, assumed, proposals, x_hat) -> int:
     """RK4 steps per interval for the assumed model plus the proposals."""
     coef, u = proposals.coefficients, study.u
+    model = study.model_at(assumed.fit.physical)
     cols = [int(j) for j in np.flatnonzero(np.any(coef != 0, axis=0))]
 
     def rhs_rows(x, stride):
         ts = study.t[::stride][: x.shape[0]]
         us = None if u is None else u[::stride][: x.shape[0]]
-        out = study.model(x, ts, us)
+        out = model(x, ts, us)
         if cols:
             z = x if us is None else np.hstack([x, us])
             with np.errstate(all="ignore"):
@@ -196,7 +216,7 @@ def _substeps(study, proposals, x_hat) -> int:
     return rk4_substeps(study, rhs_rows, x_hat, study.t)
 
 
-def _extended_model(study, proposals, confirmation, x_hat) -> ExtendedModel:
+def _extended_model(study, proposals, confirmation, fit, x_hat) -> ExtendedModel:
     n_lib = len(proposals.feature_names)
     coef = np.zeros((study.n_states, n_lib))
     intercept = np.zeros(study.n_states)
@@ -208,7 +228,7 @@ def _extended_model(study, proposals, confirmation, x_hat) -> ExtendedModel:
             coef[i, c] = v
     z_ref = x_hat if study.u is None else np.hstack([x_hat, study.u])
     return ExtendedModel(
-        study.model,
+        study.assumed_at(fit.physical),
         proposals.library,
         coef,
         study.state_names,
@@ -232,7 +252,7 @@ def _terms(study, proposals, confirmation):
     with np.errstate(all="ignore"):
         values = proposals.evaluate(z, [c for _, c in confirmation.slots])
     contributions = values * fit.coefficients
-    dynamics = study.model(fit.x, study.t, study.u)
+    dynamics = study.model_at(fit.physical)(fit.x, study.t, study.u)
     estimates = []
     for k, (i, c) in enumerate(confirmation.slots):
         name = study.state_names[i]
