@@ -1,0 +1,322 @@
+"""From the ``discover`` command's options to the arguments of :func:`discover`.
+
+Every option is checked here, before any computation, and a problem ends in
+a :class:`~.loading.UsageError` naming the option and what to do.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .loading import (
+    UsageError,
+    load_csv,
+    load_library,
+    load_model,
+    parse_names,
+    parse_rows,
+    positional_count,
+)
+
+__all__ = ["Request", "build_request", "discover_accepts"]
+
+
+@dataclass
+class Request:
+    """A checked ``discover`` command: the call to make and what it came from."""
+
+    kwargs: dict
+    y: np.ndarray
+    t: np.ndarray
+    u: np.ndarray | None
+    states: list
+    measured: list
+    inputs: list
+    model: object
+    model_path: Path
+    noise_text: str
+    parameters: dict = field(default_factory=dict)
+
+
+def discover_accepts(name: str) -> bool:
+    """Whether this version of :func:`discover` takes the keyword ``name``."""
+    from ..discovery.study import discover
+
+    return name in inspect.signature(discover).parameters
+
+
+def _number(text, option, example, minimum=None, integer=False):
+    try:
+        value = int(text) if integer else float(text)
+    except (TypeError, ValueError):
+        kind = "an integer" if integer else "a number"
+        raise UsageError(
+            f"{option} must be {kind}, got {text!r} (e.g. {example})"
+        ) from None
+    if not np.isfinite(value) or (minimum is not None and value < minimum):
+        raise UsageError(
+            f"{option} must be >= {minimum}, got {text!r} (e.g. {example})"
+        )
+    return value
+
+
+def _column(header, data, name, option):
+    if name not in header:
+        raise UsageError(
+            f"{option}: column {name!r} is not in the CSV (has {header}); use a "
+            "column name from the CSV's header"
+        )
+    return data[:, header.index(name)]
+
+
+def _times(args, header, data) -> np.ndarray:
+    """Sample times of every data row, from --time or --rate."""
+    if args.rate is not None:
+        if args.time is not None:
+            raise UsageError(
+                "--rate and --time both given: use --time COLUMN for a time "
+                "column, or --rate HZ for evenly spaced rows, not both"
+            )
+        rate = _number(args.rate, "--rate", "--rate 610.35", minimum=0)
+        if rate <= 0:
+            raise UsageError(f"--rate must be > 0 Hz, got {args.rate!r}")
+        return np.arange(data.shape[0]) / rate
+    name = args.time or "t"
+    if name not in header:
+        raise UsageError(
+            f"--time: column {name!r} is not in the CSV (has {header}); name the "
+            "time column with --time COLUMN, or give the sampling rate with "
+            "--rate HZ"
+        )
+    t = data[:, header.index(name)]
+    if np.any(~np.isfinite(t)):
+        raise UsageError(
+            f"--time: column {name!r} has missing values (row "
+            f"{int(np.flatnonzero(~np.isfinite(t))[0])}); every row needs a time"
+        )
+    return t
+
+
+def _noise(text: str):
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise UsageError(
+            f"--noise-variance must be a number or 'auto' (or one number per "
+            f"measured column, comma separated), got {text!r}"
+        ) from None
+    return values[0] if len(values) == 1 else np.array(values)
+
+
+_NAME = re.compile(r"^[A-Za-z_]\w*$")
+
+
+def parse_parameters(text: str) -> dict:
+    """``"k=1.0,c=0.1"`` -> ``{"k": 1.0, "c": 0.1}``, checked."""
+    out = {}
+    for item in parse_names(text):
+        name, eq, value = item.partition("=")
+        name = name.strip()
+        if not eq or not value.strip():
+            raise UsageError(
+                f"--parameters: {name!r} has no value; write NAME=VALUE pairs with "
+                "initial guesses, e.g. --parameters k=1.0,c=0.1"
+            )
+        if not _NAME.match(name):
+            raise UsageError(
+                f"--parameters: {name!r} is not a valid name (letters, digits, _); "
+                "e.g. --parameters k=1.0,c=0.1"
+            )
+        if name in out:
+            raise UsageError(f"--parameters: {name!r} is given twice")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise UsageError(
+                f"--parameters: the value of {name!r}, {value.strip()!r}, is not a "
+                "number; e.g. --parameters k=1.0,c=0.1"
+            ) from None
+        if not np.isfinite(out[name]):
+            raise UsageError(f"--parameters: the value of {name!r} must be finite")
+    if not out:
+        raise UsageError("--parameters: give NAME=VALUE pairs, e.g. k=1.0,c=0.1")
+    return out
+
+
+def library_from_option(kind: str, degree_text: str):
+    """``--library`` and ``--degree`` -> a pysindy feature library."""
+    import pysindy as ps
+
+    if kind == "poly":
+        degree = _number(degree_text, "--degree", "--degree 3", 1, integer=True)
+        return ps.PolynomialLibrary(degree=degree)
+    if kind == "power":
+        from ..libraries import PowerLibrary
+
+        return PowerLibrary()
+    if ":" in kind:
+        return load_library(kind)
+    raise UsageError(
+        f"--library: invalid choice: {kind!r}; use poly, power, or FILE.py:NAME "
+        "naming a pysindy feature library defined in your file"
+    )
+
+
+def _states(args) -> tuple[list, list, list]:
+    states = parse_names(args.states)
+    if not states:
+        raise UsageError("--states: give the state names, e.g. --states x1,x2")
+    if len(set(states)) != len(states):
+        raise UsageError(f"--states repeats a name: {states}")
+    measured = parse_names(args.measured) or list(states)
+    for name in measured:
+        if name not in states:
+            raise UsageError(
+                f"--measured: {name!r} is not one of --states {states}; measured "
+                "columns are named after the states they measure"
+            )
+    errors = parse_names(args.error_states) or list(states)
+    for name in errors:
+        if name not in states:
+            raise UsageError(
+                f"--error-states: {name!r} is not one of --states {states}; name "
+                "the states whose equation may be wrong"
+            )
+    return states, measured, errors
+
+
+def _validation_rows(args, n_rows, train: slice):
+    if args.validation_rows is None:
+        if args.validation_window is not None:
+            raise UsageError(
+                "--validation-window needs --validation-rows (the record it is "
+                "taken from), e.g. --validation-rows 16000:20000"
+            )
+        return None
+    rows = parse_rows(args.validation_rows, n_rows, "--validation-rows")
+    if rows.start < train.stop and train.start < rows.stop:
+        suggestion = f"0:{rows.start}" if rows.start > 0 else f"{rows.stop}:"
+        raise UsageError(
+            f"--validation-rows {args.validation_rows} overlaps the training rows "
+            f"{train.start}:{train.stop}; validation must be kept out of the fit: "
+            f"give --train-rows too, e.g. --train-rows {suggestion}"
+        )
+    return rows
+
+
+def _check_signature(model, args, has_inputs: bool) -> None:
+    """The model's arguments match --inputs and --parameters."""
+    count = positional_count(model)
+    if count is None:
+        return
+    name = args.model.rpartition(":")[2]
+    if args.parameters is not None and count < 4:
+        raise UsageError(
+            f"--parameters: the model {name} must take (x, t, u, p), p a dict of the "
+            f"parameters (u is None without --inputs); it takes {count} arguments"
+        )
+    if args.parameters is None and count >= 4:
+        raise UsageError(
+            f"--model: {name} takes {count} arguments (x, t, u, p?): give its "
+            "parameters with --parameters NAME=VALUE,..., e.g. --parameters k=1.0"
+        )
+    if args.parameters is None and count == 3 and not has_inputs:
+        raise UsageError(
+            f"--model: {name} takes an input u, f(x, t, u), but no --inputs were "
+            "given; name the input columns with --inputs, e.g. --inputs force"
+        )
+
+
+def build_request(args) -> Request:
+    """Check every option of ``discover``; nothing is computed yet."""
+    header, data = load_csv(args.data)
+    states, measured, errors = _states(args)
+    t_all = _times(args, header, data)
+    y_all = np.column_stack([_column(header, data, c, "--measured") for c in measured])
+    inputs = parse_names(args.inputs)
+    u_all = None
+    if inputs:
+        u_all = np.column_stack([_column(header, data, c, "--inputs") for c in inputs])
+        bad = ~np.all(np.isfinite(u_all), axis=1)
+        if np.any(bad):
+            raise UsageError(
+                f"--inputs: input columns must not have missing values (row "
+                f"{int(np.flatnonzero(bad)[0])}); fill them or drop those rows"
+            )
+    n_rows = data.shape[0]
+    train = (
+        parse_rows(args.train_rows, n_rows, "--train-rows")
+        if args.train_rows
+        else slice(0, n_rows)
+    )
+    val_rows = _validation_rows(args, n_rows, train)
+    if args.input_hold not in ("linear", "zoh"):
+        raise UsageError(f"--input-hold must be linear or zoh, got {args.input_hold!r}")
+    if args.error_model not in ("white", "random_walk"):
+        raise UsageError(
+            f"--error-model must be white or random_walk, got {args.error_model!r}"
+        )
+    model, path = load_model(args.model)
+    _check_signature(model, args, bool(inputs))
+    kwargs = dict(
+        assumed_model=model,
+        n_states=len(states),
+        measured=[states.index(n) for n in measured],
+        noise_variance=_noise(args.noise_variance),
+        error_states=[states.index(n) for n in errors],
+        feature_library=library_from_option(args.library, args.degree),
+        feature_names=states + inputs,
+        alpha=_number(args.alpha, "--alpha", "--alpha 0.05"),
+        error_model=args.error_model,
+        input_hold=args.input_hold,
+        verbose=bool(args.verbose),
+    )
+    if u_all is not None:
+        kwargs["u"] = u_all[train]
+    if val_rows is not None:
+        record = (y_all[val_rows], t_all[val_rows])
+        kwargs["validation"] = record + ((u_all[val_rows],) if inputs else ())
+        if args.validation_window is not None:
+            kwargs["validation_window"] = _number(
+                args.validation_window,
+                "--validation-window",
+                "--validation-window 50",
+                2,
+                integer=True,
+            )
+    if args.offsets:
+        if not discover_accepts("offsets"):
+            raise UsageError(
+                "--offsets is not supported by this version of pysindy-mme's discover"
+            )
+        kwargs["offsets"] = True
+    parameters = {}
+    if args.parameters is not None:
+        parameters = parse_parameters(args.parameters)
+        if not discover_accepts("parameters"):
+            raise UsageError(
+                "--parameters: grey-box parameters are not yet supported by this "
+                "version of pysindy-mme's discover; leave --parameters out and put "
+                "your best values into the model file"
+            )
+        kwargs["parameters"] = parameters
+    return Request(
+        kwargs=kwargs,
+        y=y_all[train],
+        t=t_all[train],
+        u=None if u_all is None else u_all[train],
+        states=states,
+        measured=measured,
+        inputs=inputs,
+        model=model,
+        model_path=path,
+        noise_text=args.noise_variance,
+        parameters=parameters,
+    )

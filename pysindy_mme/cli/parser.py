@@ -1,0 +1,177 @@
+"""The command line's options: every one with its default and an example."""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["build_parser", "DISCOVER_EXAMPLES"]
+
+DISCOVER_EXAMPLES = """\
+examples:
+  # only the position is measured; the velocity equation may miss terms
+  pysindy-mme discover data.csv --model my_model.py:f --states position,velocity \\
+      --measured position --time t --noise-variance 0.01 --error-states velocity \\
+      --out results/
+
+  # no time column (sampled at 610.35 Hz), an input, fit on rows 0:16000 and
+  # validate on 16000:20000, the model's stiffness k and damping c estimated
+  pysindy-mme discover record.csv --rate 610.35 --inputs u \\
+      --model oscillator.py:f --states y,v --measured y --error-states v \\
+      --parameters k=1.0,c=0.1 --train-rows 0:16000 --validation-rows 16000:20000
+
+The model file defines a vectorised function of x (shape (n_samples, n_states)),
+t (shape (n_samples,)) and, with --inputs, u (n_samples, n_inputs):
+
+  import numpy as np
+  def f(x, t):
+      return np.column_stack([x[:, 1], -x[:, 0] - 0.1 * x[:, 1]])
+
+Outputs (in --out): report.txt, discovery.json, timeseries.csv (time,
+measurements, MME's estimated states and d(t), both models' simulations) and
+the figures states.png, model_error.png, gain.png, stepwise_history.png.
+Every message and what to do about it: docs/errors.md.
+"""
+
+HELP = {
+    "data": "CSV file: a header row of column names, then one row per sample "
+    "(empty cells or 'nan' are missing measurements). Example: data.csv",
+    "--model": "your assumed model, FILE.py:FUNCTION: a vectorised f(x, t) "
+    "returning dx/dt with one column per state (f(x, t, u) with --inputs, "
+    "f(x, t, u, p) with --parameters). Required. Example: --model my_model.py:f",
+    "--states": "names of the model's states, in the order of the columns of x. "
+    "Required. Example: --states position,velocity",
+    "--measured": "the measured states; each is the CSV column of the same name. "
+    "Default: every state. Example: --measured position",
+    "--time": "CSV column holding the sample times. Default: t (or give --rate). "
+    "Example: --time time",
+    "--rate": "sampling rate in Hz, for a CSV without a time column: data row k "
+    "is at t = k / HZ (not with --time). Default: none. Example: --rate 610.35",
+    "--inputs": "CSV columns of known inputs u; the model is then f(x, t, u) and "
+    "the library sees the inputs after the states. Default: none. "
+    "Example: --inputs force",
+    "--input-hold": "how the inputs act between samples: linear (interpolated) "
+    "or zoh (held until the next sample, as a digital controller applies them). "
+    "Default: linear. Example: --input-hold zoh",
+    "--noise-variance": "variance (the standard deviation SQUARED) of the "
+    "measurement noise, in the data's units squared: one value, or one per "
+    "measured column; 'auto' estimates it from the noise floor of the data's "
+    "spectrum and says so. Default: auto. Example: --noise-variance 0.01 (noise "
+    "sd 0.1)",
+    "--error-states": "states whose equation may be wrong (each gets a model "
+    "error d(t)). Default: every state. Name only the equations that can be "
+    "wrong: an error in the equation of a measured state (such as position' = "
+    "velocity, a definition) cannot be told apart from errors of the states seen "
+    "only through it, and a warning says so. Example: --error-states velocity",
+    "--library": "candidate functions for the missing terms: poly (polynomials "
+    "of the states and inputs up to --degree), power (the paper's Table I: signed "
+    "and absolute powers and their products), or FILE.py:NAME, a pysindy feature "
+    "library defined in your file (e.g. a CustomLibrary of sign(v) or sin(x)). "
+    "Default: poly. Example: --library power",
+    "--degree": "degree of the poly library. Default: 3. Example: --degree 2",
+    "--parameters": "grey box: parameters of your model to estimate, with initial "
+    "guesses; the model is then f(x, t, u, p), p a dict name -> value (u is None "
+    "without --inputs). Default: none (the model is fixed). "
+    "Example: --parameters k=1.0,c=0.1",
+    "--train-rows": "data rows to fit on, A:B (counted from 0 after the header, "
+    "A included, B excluded; an end may be left out). Default: every row. "
+    "Example: --train-rows 0:16000",
+    "--validation-rows": "data rows kept out of the fit to measure the gain out "
+    "of sample: each model's initial state is estimated from the first "
+    "--validation-window rows, then it runs free. Must not overlap the training "
+    "rows. Default: none. Example: --validation-rows 16000:20000",
+    "--validation-window": "leading validation rows used to estimate the initial "
+    "state (needs --validation-rows). Default: 50. Example: --validation-window 100",
+    "--alpha": "significance level of the tests (consistency, each term, the "
+    "extended model against the assumed one). Default: 0.01. Example: --alpha 0.05",
+    "--error-model": "MME's prior on d(t): white (the paper) or random_walk "
+    "(a smooth d, usually better for a missing term of the state). "
+    "Default: white. Example: --error-model random_walk",
+    "--offsets": "estimate a constant offset per measured column (y = state + "
+    "offset, e.g. a sensor's bias) instead of letting the dynamics absorb it. "
+    "Default: off. Example: --offsets",
+    "--out": "output folder (created; files in it are overwritten). "
+    "Default: mme_output. Example: --out results/",
+    "--verbose": "report each stage of the study, with the elapsed time, on "
+    "standard error. Default: off. Example: --verbose",
+}
+
+
+def _add(parser, flag, **kwargs):
+    parser.add_argument(flag, help=HELP[flag], **kwargs)
+
+
+def _discover_parser(sub):
+    disc = sub.add_parser(
+        "discover",
+        help="your CSV and your model: what the model gets wrong, the fix, the gain",
+        description="Run the study on your measurements (CSV) and your assumed "
+        "model (a Python file).",
+        epilog=DISCOVER_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _add(disc, "data")
+    _add(disc, "--model", required=True, metavar="FILE.py:FUNCTION")
+    _add(disc, "--states", required=True, metavar="NAMES")
+    _add(disc, "--measured", metavar="NAMES")
+    _add(disc, "--time", metavar="COLUMN")
+    _add(disc, "--rate", metavar="HZ")
+    _add(disc, "--inputs", metavar="COLUMNS")
+    _add(disc, "--input-hold", default="linear", metavar="linear|zoh")
+    _add(disc, "--noise-variance", default="auto", metavar="VARIANCE|auto")
+    _add(disc, "--error-states", metavar="NAMES")
+    _add(disc, "--library", default="poly", metavar="poly|power|FILE.py:NAME")
+    _add(disc, "--degree", default="3", metavar="N")
+    _add(disc, "--parameters", metavar="NAME=VALUE,...")
+    _add(disc, "--train-rows", metavar="A:B")
+    _add(disc, "--validation-rows", metavar="A:B")
+    _add(disc, "--validation-window", metavar="N")
+    _add(disc, "--alpha", default="0.01", metavar="P")
+    _add(disc, "--error-model", default="white", metavar="white|random_walk")
+    _add(disc, "--offsets", action="store_true")
+    _add(disc, "--out", default="mme_output", metavar="FOLDER")
+    _add(disc, "--verbose", action="store_true")
+    return disc
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``pysindy-mme`` parser with its ``demo`` and ``discover`` commands."""
+    parser = argparse.ArgumentParser(
+        prog="pysindy-mme",
+        description="Find what a simulation model gets wrong, why, and how much a "
+        "fix helps (minimum model error estimation + floating-F stepwise "
+        "regression).",
+        epilog="examples:\n  pysindy-mme demo\n  pysindy-mme discover --help",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    demo = sub.add_parser(
+        "demo",
+        help="the paper's Van der Pol study, end to end (about 5 s)",
+        description="The paper's Van der Pol study: report on the terminal, "
+        "figures and CSV in --out.",
+        epilog="example:\n  pysindy-mme demo --out mme_demo_output --library power",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    demo.add_argument(
+        "--out",
+        default="mme_demo_output",
+        metavar="FOLDER",
+        help="folder for the report, CSV and figures. Default: mme_demo_output. "
+        "Example: --out demo/",
+    )
+    demo.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="noise seed of the simulated record. Default: 0. Example: --seed 3",
+    )
+    demo.add_argument(
+        "--library",
+        default="poly",
+        choices=["poly", "power"],
+        help="poly: degree-3 polynomials; power: the paper's Table I (slower). "
+        "Default: poly. Example: --library power",
+    )
+    demo.add_argument("--verbose", action="store_true", help=HELP["--verbose"])
+    _discover_parser(sub)
+    return parser

@@ -1,0 +1,202 @@
+"""Each option of ``discover`` reaches :func:`discover` as documented.
+
+Most tests stop the command at its call of ``discover`` (a stand-in records
+the arguments), so they check the wiring in milliseconds; the grey-box test
+runs the whole study.
+"""
+
+import contextlib
+import io
+import json
+
+import numpy as np
+import pytest
+from cli_support import base_args, run, write_user_files
+
+import pysindy_mme.discovery as discovery
+from pysindy_mme.cli import build_parser, main
+
+
+class Stop(BaseException):
+    pass
+
+
+@pytest.fixture
+def call(monkeypatch):
+    """``call(argv) -> (args, kwargs)`` that discover would have received."""
+
+    def run_until_discover(argv):
+        seen = {}
+
+        def stand_in(*args, **kwargs):
+            seen["args"], seen["kwargs"] = args, kwargs
+            raise Stop
+
+        monkeypatch.setattr(discovery, "discover", stand_in)
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            try:
+                main([str(a) for a in argv])
+            except Stop:
+                return seen["args"], seen["kwargs"]
+        raise AssertionError(f"discover was not called: {err.getvalue()}")
+
+    return run_until_discover
+
+
+def test_rate_instead_of_a_time_column(tmp_path, call):
+    csv, model, data = write_user_files(tmp_path, time_column=False)
+    argv = base_args(csv, model, tmp_path / "o", time=None, rate="40")
+    (y, t), _ = call(argv)
+    np.testing.assert_allclose(t, np.arange(data.t.size) / 40.0)
+    np.testing.assert_allclose(y[:, 0], np.round(data.y[:, 0], 6))
+
+
+def test_default_time_column_is_t(tmp_path, call):
+    csv, model, data = write_user_files(tmp_path)
+    csv.write_text(csv.read_text().replace("time,", "t,", 1))
+    (_, t), _ = call(base_args(csv, model, tmp_path / "o", time=None))
+    np.testing.assert_allclose(t, data.t, atol=1e-6)
+
+
+def test_row_ranges_and_validation_record(tmp_path, call):
+    csv, model, data = write_user_files(tmp_path, time_column=False)
+    argv = base_args(
+        csv,
+        model,
+        tmp_path / "o",
+        time=None,
+        rate="40",
+        train_rows="100:500",
+        validation_rows="500:",
+        validation_window="25",
+    )
+    (y, t), kw = call(argv)
+    np.testing.assert_allclose(t, np.arange(100, 500) / 40.0)  # times keep their rows
+    np.testing.assert_allclose(y[:, 0], np.round(data.y[100:500, 0], 6))
+    y_v, t_v = kw["validation"]
+    np.testing.assert_allclose(t_v, np.arange(500, data.t.size) / 40.0)
+    assert y_v.shape == (data.t.size - 500, 1)
+    assert kw["validation_window"] == 25
+
+
+def test_inputs_hold_and_names(tmp_path, call):
+    csv, model, _ = write_user_files(tmp_path, force=True)
+    argv = base_args(
+        csv,
+        model,
+        tmp_path / "o",
+        model=f"{model}:with_input",
+        inputs="force",
+        input_hold="zoh",
+        train_rows=":600",
+        validation_rows="600:",
+    )
+    (y, _), kw = call(argv)
+    assert kw["u"].shape == (600, 1) and kw["input_hold"] == "zoh"
+    assert kw["feature_names"] == ["position", "velocity", "force"]
+    assert len(kw["validation"]) == 3 and kw["validation"][2].shape == (201, 1)
+
+
+def test_defaults_reach_discover(tmp_path, call):
+    csv, model, _ = write_user_files(tmp_path)
+    argv = base_args(
+        csv,
+        model,
+        tmp_path / "o",
+        noise_variance=None,
+        measured=None,
+        error_states=None,
+        states="position",
+        model=f"{model}:f",
+    )
+    # One state 'position' measured: f returns two columns, so discover would
+    # complain; the stand-in only looks at what the defaults became.
+    _, kw = call(argv)
+    assert kw["noise_variance"] == "auto"
+    assert kw["measured"] == [0] and kw["error_states"] == [0]
+    assert kw["alpha"] == 0.01 and kw["error_model"] == "white"
+    assert kw["input_hold"] == "linear" and kw["verbose"] is False
+    assert "validation" not in kw and "parameters" not in kw
+    assert type(kw["feature_library"]).__name__ == "PolynomialLibrary"
+    assert kw["feature_library"].degree == 3
+
+
+def test_noise_variance_per_channel_and_other_options(tmp_path, call):
+    csv, model, data = write_user_files(tmp_path)
+    rows = ["time,position,velocity"] + [
+        f"{t:.6f},{a:.6f},{b:.6f}" for t, (a, b) in zip(data.t, data.x)
+    ]
+    csv.write_text("\n".join(rows) + "\n")
+    argv = base_args(
+        csv,
+        model,
+        tmp_path / "o",
+        measured="position,velocity",
+        noise_variance="0.01,0.04",
+        alpha="0.05",
+        error_model="random_walk",
+        library="power",
+        offsets=True,
+        verbose=True,
+    )
+    _, kw = call(argv)
+    np.testing.assert_allclose(kw["noise_variance"], [0.01, 0.04])
+    assert kw["alpha"] == 0.05 and kw["error_model"] == "random_walk"
+    assert type(kw["feature_library"]).__name__ == "PowerLibrary"
+    assert kw["offsets"] is True and kw["verbose"] is True
+
+
+def test_library_from_a_user_file(tmp_path, call):
+    csv, model, _ = write_user_files(tmp_path)
+    lib = tmp_path / "lib.py"
+    lib.write_text(
+        "import numpy as np\nimport pysindy as ps\n\n"
+        "library = ps.CustomLibrary(library_functions=[np.sign, np.sin])\n\n"
+        "def make():\n    return ps.FourierLibrary(n_frequencies=2)\n"
+    )
+    _, kw = call(base_args(csv, model, tmp_path / "o", library=f"{lib}:library"))
+    assert type(kw["feature_library"]).__name__ == "CustomLibrary"
+    _, kw = call(base_args(csv, model, tmp_path / "o", library=f"{lib}:make"))
+    assert type(kw["feature_library"]).__name__ == "FourierLibrary"
+
+
+def test_every_option_has_a_default_and_an_example_in_help():
+    parser = build_parser()
+    commands = parser._subparsers._group_actions[0].choices
+    for name, sub in commands.items():
+        for action in sub._actions:
+            if action.dest == "help":
+                continue
+            text = action.help or ""
+            assert "Example:" in text or "e.g." in text, (name, action.dest, text)
+            if action.option_strings and not action.required:
+                assert "Default:" in text, (name, action.dest, text)
+            elif action.option_strings:
+                assert "Required." in text, (name, action.dest, text)
+
+
+def test_help_shows_examples_and_exits_0():
+    result = run(["discover", "--help"])
+    assert result.code == 0
+    assert "examples:" in result.out
+    assert "pysindy-mme discover data.csv --model my_model.py:f" in result.out
+    assert "Default: auto" in result.out  # --noise-variance
+    assert "Default: every state" in result.out  # --error-states
+    top = run(["--help"])
+    assert top.code == 0 and "pysindy-mme demo" in top.out
+
+
+def test_grey_box_parameters_end_to_end(tmp_path):
+    """Duffing record, linear model with stiffness and damping 30 % off."""
+    csv, model, _ = write_user_files(tmp_path)
+    out = tmp_path / "out"
+    argv = base_args(csv, model, out, model=f"{model}:g", parameters="k=1.3,c=0.07")
+    result = run(argv)
+    assert result.code == 0, result.err
+    summary = json.loads((out / "discovery.json").read_text())
+    k, c = summary["parameters"]["k"], summary["parameters"]["c"]
+    assert k["initial"] == 1.3 and c["initial"] == 0.07
+    # The truth: k = 1, c = 0.1, and the cubic spring -x^3 as the missing effect.
+    assert abs(k["value"] - 1.0) < 0.05 and abs(c["value"] - 0.1) < 0.01
+    assert list(summary["terms"]["velocity"]) == ["position^3"]
