@@ -84,7 +84,9 @@ def _times(args, header, data) -> np.ndarray:
             )
         rate = _number(args.rate, "--rate", "--rate 610.35", minimum=0)
         if rate <= 0:
-            raise UsageError(f"--rate must be > 0 Hz, got {args.rate!r}")
+            raise UsageError(
+                f"--rate must be > 0 Hz, got {args.rate!r} (e.g. --rate 610.35)"
+            )
         return np.arange(data.shape[0]) / rate
     name = args.time or "t"
     if name not in header:
@@ -135,7 +137,9 @@ def parse_parameters(text: str) -> dict:
                 "e.g. --parameters k=1.0,c=0.1"
             )
         if name in out:
-            raise UsageError(f"--parameters: {name!r} is given twice")
+            raise UsageError(
+                f"--parameters: {name!r} is given twice; give each parameter once"
+            )
         try:
             out[name] = float(value)
         except ValueError:
@@ -144,7 +148,10 @@ def parse_parameters(text: str) -> dict:
                 "number; e.g. --parameters k=1.0,c=0.1"
             ) from None
         if not np.isfinite(out[name]):
-            raise UsageError(f"--parameters: the value of {name!r} must be finite")
+            raise UsageError(
+                f"--parameters: the value of {name!r} must be a finite number, e.g. "
+                f"{name}=1.0"
+            )
     if not out:
         raise UsageError("--parameters: give NAME=VALUE pairs, e.g. k=1.0,c=0.1")
     return out
@@ -174,7 +181,7 @@ def _states(args) -> tuple[list, list, list]:
     if not states:
         raise UsageError("--states: give the state names, e.g. --states x1,x2")
     if len(set(states)) != len(states):
-        raise UsageError(f"--states repeats a name: {states}")
+        raise UsageError(f"--states repeats a name: {states}; list each state once")
     measured = parse_names(args.measured) or list(states)
     for name in measured:
         if name not in states:

@@ -33,19 +33,27 @@ def plot_states(res, axes, x_true=None):
     axes : sequence of matplotlib Axes, one per state
     x_true : ndarray (n_samples, n_states), optional
         Noise-free states, drawn when known (simulated data).
+
+    With fitted measurement offsets (``discover(..., offsets=True)``) the
+    measurements are drawn with their offset removed, on the states' scale.
     """
     t = res.t
     x_hat = np.asarray(res.mme.smoothed_x_, dtype=float)
     x_ext = np.asarray(res.extended_simulation, dtype=float)
     x_ass = np.asarray(res.assumed_simulation, dtype=float)
     same = x_ext is x_ass or np.array_equal(x_ext, x_ass, equal_nan=True)
+    offsets = getattr(res, "offsets", None)
     for i, ax in enumerate(axes):
         name = res.state_names[i]
         j = _measured_column(res, i)
         y = None if j is None else res.y[:, j]
+        label = LABEL["measured"]
+        if y is not None and offsets is not None:  # the states, not the sensors
+            y = y - offsets[j]
+            label = "measured - fitted offset"
         truth = None if x_true is None else np.asarray(x_true)[:, i]
         if y is not None:
-            ax.plot(t, y, label=LABEL["measured"], **STYLE["measured"])
+            ax.plot(t, y, label=label, **STYLE["measured"])
         if truth is not None:
             ax.plot(t, truth, label=LABEL["truth"], **STYLE["truth"])
         ax.plot(t, x_hat[:, i], label=LABEL["estimate"], **STYLE["estimate"])
@@ -60,7 +68,7 @@ def plot_states(res, axes, x_true=None):
         ax.set_ylim(lo, hi)
         ax.set_xlim(t[0], t[-1])
         ax.set_ylabel(name)
-        seen = "measured" if j is not None else "not measured: MME estimate only"
+        seen = "measured" if j is not None else "not measured"
         ax.set_title(f"{name} ({seen})", fontsize=9, loc="left")
         ax.grid(alpha=0.25, lw=0.5)
     if same and len(axes):

@@ -7,6 +7,7 @@ output folder. Warnings are printed as ``pysindy-mme: warning: ...`` lines.
 
 import contextlib
 import io
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -206,6 +207,8 @@ def test_command_line_slip_is_named(tmp_path, slip):
     assert len(lines) == 1 and lines[0].startswith("pysindy-mme: error: "), lines
     for phrase in slip.phrases:
         assert phrase in lines[0], (phrase, lines[0])
+    # it names what to fix: an option, or the file (and line) of the user's input
+    assert re.search(r"--[a-z]|\.py:\d+:|data file|: line \d+", lines[0]), lines[0]
     assert "Traceback" not in result.err
     assert not out.exists(), "bad input must not write anything"
 

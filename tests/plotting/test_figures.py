@@ -216,3 +216,21 @@ def test_history_rows_never_overlap_even_for_a_long_history():
         assert lower.y1 <= upper.y0 + 0.5, "labels overlap"
     plot_area = ax.patch.get_window_extent(renderer)
     assert all(b.x1 <= plot_area.x0 + 0.5 for b in boxes)
+
+
+def test_measurements_are_drawn_on_the_states_scale_when_offsets_were_fitted(study):
+    res, _ = study
+
+    class WithOffset:
+        """The study as if discover(..., offsets=True) had fitted 0.5."""
+
+        offsets = np.array([0.5])
+
+        def __getattr__(self, name):
+            return getattr(res, name)
+
+    fig = states_figure(WithOffset())
+    lines = {line.get_label(): line for line in fig.axes[0].get_lines()}
+    np.testing.assert_allclose(
+        lines["measured - fitted offset"].get_ydata(), res.y[:, 0] - 0.5
+    )
