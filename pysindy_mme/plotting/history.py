@@ -40,6 +40,18 @@ def _name(res, step):
     return getattr(step, "name", f"f{step.feature}")
 
 
+def _final_terms(res, steps) -> list:
+    """Names of the terms in the model after the last step, in order of entry."""
+    model = []
+    for s in steps:
+        name = _name(res, s)
+        if s.action == "add" and name not in model:
+            model.append(name)
+        elif s.action == "remove" and name in model:
+            model.remove(name)
+    return model
+
+
 def plot_stepwise_history(res, ax, target=None):
     """Draw the steps of one error state (``target``, default the first).
 
@@ -98,7 +110,10 @@ def plot_stepwise_history(res, ax, target=None):
     more = f"; first {MAX_ROWS} of {len(steps)} steps" if len(steps) > MAX_ROWS else ""
     phase2 = any(s.phase == 2 for s in shown)
     shade = "; shaded: Phase II (floating threshold)" if phase2 else ""
+    final = ", ".join(_final_terms(res, steps)) or "no term"
     ax.set_title(
-        f"stepwise regression of d in {name}'{shade}{more}", fontsize=9, loc="left"
+        f"stepwise regression of d in {name}'{shade}{more}\nfinal model: {final}",
+        fontsize=9,
+        loc="left",
     )
     ax.grid(axis="x", alpha=0.25, lw=0.5, which="both")

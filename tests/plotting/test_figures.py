@@ -216,6 +216,11 @@ def test_history_rows_never_overlap_even_for_a_long_history():
         assert lower.y1 <= upper.y0 + 0.5, "labels overlap"
     plot_area = ax.patch.get_window_extent(renderer)
     assert all(b.x1 <= plot_area.x0 + 0.5 for b in boxes)
+    # The title names the final model: the optimizer's own support.
+    final = ax.get_title(loc="left").split("final model: ")[1].split(", ")
+    names = model.get_feature_names()
+    support = {names[j] for j in np.flatnonzero(model.coefficients()[1])}
+    assert set(final) == support and len(final) == len(support)
 
 
 def test_measurements_are_drawn_on_the_states_scale_when_offsets_were_fitted(study):
