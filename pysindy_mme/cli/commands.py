@@ -52,14 +52,20 @@ def warn_line(message) -> None:
 
 @contextlib.contextmanager
 def captured_warnings():
-    """Collect every warning raised inside (no duplicates), in order."""
+    """Collect the warnings meant for the user raised inside, in order, once each.
+
+    Those are ``UserWarning`` and its subclasses (the package's own, and
+    scikit-learn's ``ConvergenceWarning``). Deprecation and future warnings
+    of the libraries underneath, and numerical ``RuntimeWarning``s, say
+    nothing a user of the command line can act on and are left out.
+    """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         messages = []
         yield messages
     for w in caught:
         text = one_line(w.message)
-        if text not in messages:
+        if issubclass(w.category, UserWarning) and text not in messages:
             messages.append(text)
 
 

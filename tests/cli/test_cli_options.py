@@ -200,3 +200,21 @@ def test_grey_box_parameters_end_to_end(tmp_path):
     # The truth: k = 1, c = 0.1, and the cubic spring -x^3 as the missing effect.
     assert abs(k["value"] - 1.0) < 0.05 and abs(c["value"] - 0.1) < 0.01
     assert list(summary["terms"]["velocity"]) == ["position^3"]
+
+
+def test_only_warnings_for_the_user_are_printed():
+    import warnings
+
+    from pysindy_mme.cli.commands import captured_warnings
+    from pysindy_mme.exceptions import DiscoveryWarning
+
+    with captured_warnings() as messages:
+        warnings.warn("line one\n  line two", DiscoveryWarning, stacklevel=1)
+        warnings.warn(
+            "line one\n  line two", DiscoveryWarning, stacklevel=1
+        )  # once only
+        warnings.warn("a library's internals changed", DeprecationWarning, stacklevel=1)
+        warnings.warn("a library's future", FutureWarning, stacklevel=1)
+        warnings.warn("overflow encountered", RuntimeWarning, stacklevel=1)
+        warnings.warn("plain", UserWarning, stacklevel=1)
+    assert messages == ["line one line two", "plain"]
