@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.integrate import HOLDS
 from .loading import (
     UsageError,
     load_csv,
@@ -264,8 +265,10 @@ def build_request(args) -> Request:
         else slice(0, n_rows)
     )
     val_rows = _validation_rows(args, n_rows, train)
-    if args.input_hold not in ("linear", "zoh"):
-        raise UsageError(f"--input-hold must be linear or zoh, got {args.input_hold!r}")
+    if args.input_hold not in HOLDS:
+        raise UsageError(
+            f"--input-hold must be one of {', '.join(HOLDS)}, got {args.input_hold!r}"
+        )
     if args.error_model not in ("white", "random_walk"):
         raise UsageError(
             f"--error-model must be white or random_walk, got {args.error_model!r}"

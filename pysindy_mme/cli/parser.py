@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.integrate import HOLDS
+
 __all__ = ["build_parser", "DISCOVER_EXAMPLES"]
 
 DISCOVER_EXAMPLES = """\
@@ -49,9 +51,7 @@ HELP = {
     "--inputs": "CSV columns of known inputs u; the model is then f(x, t, u) and "
     "the library sees the inputs after the states. Default: none. "
     "Example: --inputs force",
-    "--input-hold": "how the inputs act between samples: linear (interpolated) "
-    "or zoh (held until the next sample, as a digital controller applies them). "
-    "Default: linear. Example: --input-hold zoh",
+    "--input-hold": None,  # built from the holds the integrator offers
     "--noise-variance": "variance (the standard deviation SQUARED) of the "
     "measurement noise, in the data's units squared: one value, or one per "
     "measured column; 'auto' estimates it from the noise floor of the data's "
@@ -96,8 +96,24 @@ HELP = {
 }
 
 
+HOLD_TEXT = {
+    "linear": "linear (interpolated)",
+    "zoh": "zoh (held until the next sample, as a digital controller applies them)",
+    "cubic": "cubic (a smooth Catmull-Rom curve through the samples)",
+}
+
+
+def _hold_help() -> str:
+    kinds = ", ".join(HOLD_TEXT.get(h, h) for h in HOLDS)
+    return (
+        f"how the inputs act between samples: {kinds}. Default: linear. "
+        "Example: --input-hold zoh"
+    )
+
+
 def _add(parser, flag, **kwargs):
-    parser.add_argument(flag, help=HELP[flag], **kwargs)
+    text = _hold_help() if flag == "--input-hold" else HELP[flag]
+    parser.add_argument(flag, help=text, **kwargs)
 
 
 def _discover_parser(sub):
@@ -116,7 +132,7 @@ def _discover_parser(sub):
     _add(disc, "--time", metavar="COLUMN")
     _add(disc, "--rate", metavar="HZ")
     _add(disc, "--inputs", metavar="COLUMNS")
-    _add(disc, "--input-hold", default="linear", metavar="linear|zoh")
+    _add(disc, "--input-hold", default="linear", metavar="HOLD")
     _add(disc, "--noise-variance", default="auto", metavar="VARIANCE|auto")
     _add(disc, "--error-states", metavar="NAMES")
     _add(disc, "--library", default="poly", metavar="poly|power|FILE.py:NAME")

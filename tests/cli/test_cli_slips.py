@@ -181,7 +181,9 @@ SLIPS = [
     ),
     Slip("degree zero", {"degree": "0"}, ("--degree must be >= 1",)),
     Slip(
-        "input hold unknown", {"input_hold": "cubic"}, ("--input-hold must be linear",)
+        "input hold unknown",
+        {"input_hold": "cubic"},
+        ("--input-hold must be one of linear, zoh",),
     ),
     Slip("states repeated", {"states": "position,position"}, ("--states repeats",)),
 ]
