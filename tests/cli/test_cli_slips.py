@@ -182,7 +182,7 @@ SLIPS = [
     Slip("degree zero", {"degree": "0"}, ("--degree must be >= 1",)),
     Slip(
         "input hold unknown",
-        {"input_hold": "cubic"},
+        {"input_hold": "spline"},
         ("--input-hold must be one of linear, zoh",),
     ),
     Slip("states repeated", {"states": "position,position"}, ("--states repeats",)),
