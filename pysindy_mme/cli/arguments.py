@@ -242,22 +242,49 @@ def _check_signature(model, args, has_inputs: bool) -> None:
         )
 
 
+def _inputs(args, header, data):
+    """``(names, values of every row)`` of the --inputs columns (None if none)."""
+    inputs = parse_names(args.inputs)
+    if not inputs:
+        return inputs, None
+    u_all = np.column_stack([_column(header, data, c, "--inputs") for c in inputs])
+    bad = ~np.all(np.isfinite(u_all), axis=1)
+    if np.any(bad):
+        raise UsageError(
+            f"--inputs: input columns must not have missing values (row "
+            f"{int(np.flatnonzero(bad)[0])}); fill them or drop those rows"
+        )
+    return inputs, u_all
+
+
+def _grey_box(args, kwargs) -> dict:
+    """--offsets and --parameters into ``kwargs``; returns the parameters."""
+    if args.offsets:
+        if not discover_accepts("offsets"):
+            raise UsageError(
+                "--offsets is not supported by this version of pysindy-mme's discover"
+            )
+        kwargs["offsets"] = True
+    if args.parameters is None:
+        return {}
+    parameters = parse_parameters(args.parameters)
+    if not discover_accepts("parameters"):
+        raise UsageError(
+            "--parameters: grey-box parameters are not yet supported by this "
+            "version of pysindy-mme's discover; leave --parameters out and put "
+            "your best values into the model file"
+        )
+    kwargs["parameters"] = parameters
+    return parameters
+
+
 def build_request(args) -> Request:
     """Check every option of ``discover``; nothing is computed yet."""
     header, data = load_csv(args.data)
     states, measured, errors = _states(args)
     t_all = _times(args, header, data)
     y_all = np.column_stack([_column(header, data, c, "--measured") for c in measured])
-    inputs = parse_names(args.inputs)
-    u_all = None
-    if inputs:
-        u_all = np.column_stack([_column(header, data, c, "--inputs") for c in inputs])
-        bad = ~np.all(np.isfinite(u_all), axis=1)
-        if np.any(bad):
-            raise UsageError(
-                f"--inputs: input columns must not have missing values (row "
-                f"{int(np.flatnonzero(bad)[0])}); fill them or drop those rows"
-            )
+    inputs, u_all = _inputs(args, header, data)
     n_rows = data.shape[0]
     train = (
         parse_rows(args.train_rows, n_rows, "--train-rows")
@@ -301,22 +328,7 @@ def build_request(args) -> Request:
                 2,
                 integer=True,
             )
-    if args.offsets:
-        if not discover_accepts("offsets"):
-            raise UsageError(
-                "--offsets is not supported by this version of pysindy-mme's discover"
-            )
-        kwargs["offsets"] = True
-    parameters = {}
-    if args.parameters is not None:
-        parameters = parse_parameters(args.parameters)
-        if not discover_accepts("parameters"):
-            raise UsageError(
-                "--parameters: grey-box parameters are not yet supported by this "
-                "version of pysindy-mme's discover; leave --parameters out and put "
-                "your best values into the model file"
-            )
-        kwargs["parameters"] = parameters
+    parameters = _grey_box(args, kwargs)
     return Request(
         kwargs=kwargs,
         y=y_all[train],
