@@ -10,6 +10,8 @@ labels never overlap, however many steps there are.
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 __all__ = ["plot_stepwise_history", "history_rows", "MAX_ROWS"]
@@ -50,6 +52,16 @@ def _final_terms(res, steps) -> list:
         elif s.action == "remove" and name in model:
             model.remove(name)
     return model
+
+
+def _final_text(terms, limit=10, width=72) -> str:
+    """The final model for the title: at most ``limit`` names, wrapped."""
+    if not terms:
+        return "no term"
+    text = ", ".join(terms[:limit])
+    if len(terms) > limit:
+        text += f" and {len(terms) - limit} more"
+    return textwrap.fill(text, width)
 
 
 def plot_stepwise_history(res, ax, target=None):
@@ -110,7 +122,7 @@ def plot_stepwise_history(res, ax, target=None):
     more = f"; first {MAX_ROWS} of {len(steps)} steps" if len(steps) > MAX_ROWS else ""
     phase2 = any(s.phase == 2 for s in shown)
     shade = "; shaded: Phase II (floating threshold)" if phase2 else ""
-    final = ", ".join(_final_terms(res, steps)) or "no term"
+    final = _final_text(_final_terms(res, steps))
     ax.set_title(
         f"stepwise regression of d in {name}'{shade}{more}\nfinal model: {final}",
         fontsize=9,
