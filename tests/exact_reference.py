@@ -31,3 +31,22 @@ def exact_lstsq(A, y):
         acc = M[row][k] - sum(M[row][j] * sol[j] for j in range(row + 1, k))
         sol[row] = acc / M[row][row]
     return np.array([float(s) for s in sol])
+
+
+def exact_normal_inverse(A):
+    """``(A^T A)^-1`` of float data in exact rational arithmetic (Gauss-Jordan)."""
+    F = [[Fraction(v) for v in row] for row in A]
+    k = A.shape[1]
+    M = [
+        [sum(r[p] * r[q] for r in F) for q in range(k)]
+        + [Fraction(int(p == q)) for q in range(k)]
+        for p in range(k)
+    ]
+    for col in range(k):
+        pivot = M[col][col]
+        M[col] = [v / pivot for v in M[col]]
+        for row in range(k):
+            if row != col and M[row][col] != 0:
+                f = M[row][col]
+                M[row] = [a - f * b for a, b in zip(M[row], M[col], strict=True)]
+    return np.array([[float(v) for v in row[k:]] for row in M])

@@ -352,7 +352,8 @@ class MME(BaseDifferentiation):
             )
         if self.input_hold not in HOLDS:
             raise ValueError(
-                f"input_hold must be 'linear' or 'zoh', got {self.input_hold!r}"
+                "input_hold must be 'linear', 'zoh' or 'cubic', got "
+                f"{self.input_hold!r}"
             )
         return int(n)
 

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .output_error import OutputErrorFit, OutputErrorModel
+from .output_error import OutputErrorFit, OutputErrorModel, better_bic
 
 __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
 
@@ -92,7 +92,10 @@ def partial_f_p_value(small: OutputErrorFit, big: OutputErrorFit, n_added=1) -> 
         return 1.0
     if big.cost <= 0:
         return 0.0
-    f_stat = ((small.cost - big.cost) / n_added) / (big.cost / big.dof)
+    # the residual variance of the bigger model; statistic and degrees of
+    # freedom corrected for correlated residuals (OutputErrorFit.inflation)
+    f_stat = ((small.cost - big.cost) / n_added) / big.residual_variance
+    f_stat /= big.inflation
     return float(stats.f.sf(f_stat, n_added, big.dof)) if f_stat > 0 else 1.0
 
 
@@ -279,8 +282,8 @@ def _swap_round(search: _Search, checked) -> bool:
             if not trial.ok:
                 continue
             slots, trial, _ = search.backward(slots, trial)
-            if trial.bic() < search.fit.bic() and (
-                best is None or trial.bic() < best[1].bic()
+            if better_bic(trial, search.fit) and (
+                best is None or better_bic(trial, best[1])
             ):
                 best = (slots, trial, alt)
         if best is not None:
@@ -296,6 +299,10 @@ def _swap_round(search: _Search, checked) -> bool:
                     search.reject(gone, why)
             search.accept(new_slots, trial)
             search.tried.add(alt)
+            # the context changed: the other terms' look-alikes deserve a
+            # second look (every accepted swap lowers the BIC: no cycle)
+            checked.clear()
+            checked.add(alt)
             changed = True
     return changed
 
@@ -320,7 +327,7 @@ def _merge_round(search: _Search, z) -> bool:
                 if not trial.ok:
                     continue
                 trial_slots, trial, _ = search.backward(trial_slots, trial)
-                if trial.bic() < fit.bic():
+                if better_bic(trial, fit):
                     pair = (
                         f"{search.describe(slots[i])} and {search.describe(slots[j])}"
                     )

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.integrate import InputSignal, simulate
+from ..core.integrate import InputSignal, simulate_guided
 
 __all__ = ["Gain", "FreeRun", "free_run", "rmse"]
 
@@ -124,14 +124,18 @@ def _ratio(a, b):
     return np.where(ok, a / np.where(ok, b, 1.0), np.nan)
 
 
-def free_run(rhs, x0, t, inputs: InputSignal | None, substeps, measure, y, window):
+def free_run(model, x0, t, inputs: InputSignal, substeps, measure, y, window, guess):
     """Simulate from ``x0`` over ``t``; RMSE of ``measure(x)`` after ``window``.
 
-    ``rhs(X (B, n), s, u (m,)) -> (B, n)``. The bound is 1e6 times the
-    larger of the data's and the initial state's magnitude.
+    ``model(x (K, n), t (K,), u (K, m) or None) -> dx/dt``. The run is the
+    exact RK4 free run from ``x0``, computed for the whole record at once
+    from ``guess`` (a state estimate of the record: it only speeds Newton's
+    method up, the answer does not depend on it; see
+    :func:`~pysindy_mme.core.integrate.simulate_guided`). The bound is 1e6
+    times the larger of the data's and the initial state's magnitude.
     """
     scale = max(float(np.nanmax(np.abs(y))), float(np.max(np.abs(x0))), 1e-300)
-    sim = simulate(rhs, x0[None], t, inputs, substeps, bound=1e6 * scale)
+    sim = simulate_guided(model, x0, t, inputs, substeps, guess, bound=1e6 * scale)
     x = sim.x[0]
     at = int(sim.diverged_at[0])
     err = rmse(y[window:], measure(x)[window:])

@@ -265,12 +265,18 @@ def _names(feature_names, n_states, n_inputs, measured=None, y_cols=None, u_cols
     return feature_names[:n_states], feature_names[n_states:]
 
 
-def _validation(validation, m, n_inputs):
+def check_record(study, y, t, u=None, name="validation y"):
+    """Another record of the study's system, checked: ``(y, t, u)``."""
+    record = (y, t) if u is None else (y, t, u)
+    return _validation(record, study.y.shape[1], study.n_inputs, name)
+
+
+def _validation(validation, m, n_inputs, name="validation y"):
     if validation is None:
         return None
     if not isinstance(validation, (tuple, list)) or len(validation) not in (2, 3):
         raise TypeError("validation must be a tuple (y, t) or (y, t, u)")
-    y_v = val.as_float_array(validation[0], "validation y", ndim=(1, 2), allow_nan=True)
+    y_v = val.as_float_array(validation[0], name, ndim=(1, 2), allow_nan=True)
     if y_v.ndim == 1:
         y_v = y_v[:, None]
     if y_v.shape[1] != m:
@@ -352,7 +358,9 @@ def check_study(
     if not isinstance(refit, (bool, np.bool_)):
         raise TypeError(f"refit must be True or False, got {refit!r}")
     if input_hold not in HOLDS:
-        raise ValueError(f"input_hold must be 'linear' or 'zoh', got {input_hold!r}")
+        raise ValueError(
+            f"input_hold must be 'linear', 'zoh' or 'cubic', got {input_hold!r}"
+        )
     u = _inputs_array(u, n_samples)
     params = _parameters(parameters)
     if params and mme is not None:

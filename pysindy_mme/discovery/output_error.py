@@ -48,7 +48,7 @@ from ..differentiation.kkt import equilibrated_inverse, solve_reduced, undetermi
 from ..differentiation.transcription import MMESmoother
 from ..exceptions import DivergenceError
 
-__all__ = ["OutputErrorFit", "OutputErrorModel"]
+__all__ = ["OutputErrorFit", "OutputErrorModel", "better_bic", "residual_inflation"]
 
 # Candidate sensitivities per solve: n_samples * n_states * group <= this.
 _SCORE_ELEMENTS = 1 << 22
@@ -99,6 +99,7 @@ class OutputErrorFit:
     _cov: tuple | None = None
     _state: object = None
     _engine: object = None
+    _inflation: float | None = None
 
     def _covariances(self):
         # computed on first use: most trial fits are judged by their cost alone
@@ -120,8 +121,37 @@ class OutputErrorFit:
         return self._covariances()[1]
 
     @property
-    def dof(self) -> int:
-        return max(self.n_residuals - self.n_free, 1)
+    def inflation(self) -> float:
+        """Variance inflation of the residuals from their autocorrelation.
+
+        Tests and standard errors assume white residuals, which a right model
+        fitted to white measurement noise leaves. A model that misses
+        dynamics (real data, always a little) leaves smooth, correlated
+        residuals, and every test would then overstate significance, so a
+        short record of a real system would "need" dozens of terms. The
+        pooled lag-1 autocorrelation ``rho`` of the whitened residuals gives
+        the AR(1) long-run inflation ``(1 + rho) / (1 - rho)``, by which test
+        statistics are divided and variances multiplied (and the effective
+        sample size is ``n / inflation``). A ``rho`` within sampling noise of
+        zero (below ``2 / sqrt(n)``) counts as white: 1.
+        """
+        if self._inflation is None:
+            self._inflation = 1.0
+            if self._state is not None and np.isfinite(self.cost):
+                self._inflation = residual_inflation(
+                    self._state[1].residuals, self._engine.R
+                )
+        return self._inflation
+
+    @property
+    def dof(self) -> float:
+        """Residual degrees of freedom, effective (see :attr:`inflation`)."""
+        return max(self.n_residuals / self.inflation - self.n_free, 1.0)
+
+    @property
+    def residual_variance(self) -> float:
+        """``cost / (n - n_free)``: 1 for a right model and right noise."""
+        return self.cost / max(self.n_residuals - self.n_free, 1)
 
     @property
     def ok(self) -> bool:
@@ -157,10 +187,46 @@ class OutputErrorFit:
         half = stats.t.ppf(0.5 + level / 2.0, self.dof) * self.std_errors
         return np.column_stack([self.theta - half, self.theta + half])
 
-    def bic(self) -> float:
-        """Bayesian information criterion (up to a constant)."""
-        n_terms = len(self.slots)
-        return self.cost + n_terms * np.log(max(self.n_residuals, 2))
+    def bic(self, inflation: float | None = None) -> float:
+        """Bayesian information criterion (up to a constant), effective sample.
+
+        Models are compared at one ``inflation`` (a poor model's residuals
+        are more correlated; dividing each cost by its own inflation would
+        favour it): :func:`better_bic` passes the smaller of the two.
+        """
+        inflation = self.inflation if inflation is None else inflation
+        n_eff = max(self.n_residuals / inflation, 2.0)
+        return self.cost / inflation + len(self.slots) * np.log(n_eff)
+
+
+def better_bic(a: OutputErrorFit, b: OutputErrorFit) -> bool:
+    """Whether ``a`` has the lower BIC than ``b``, both at the same inflation."""
+    c = min(a.inflation, b.inflation)
+    return a.bic(c) < b.bic(c)
+
+
+def residual_inflation(residuals, R) -> float:
+    """AR(1) variance inflation ``(1 + rho) / (1 - rho)`` of whitened residuals.
+
+    ``rho`` is the lag-1 autocorrelation pooled over channels and observed
+    pairs; 1 when ``rho`` is not significantly above 0 (``< 2 / sqrt(n)``).
+    """
+    r = np.asarray(residuals, dtype=float)
+    if r.ndim == 1:
+        r = r[:, None]
+    L = np.linalg.cholesky(np.linalg.inv(np.asarray(R, dtype=float))).T
+    w = np.where(np.isfinite(r), r, 0.0) @ L.T
+    pair = np.isfinite(r[1:]) & np.isfinite(r[:-1])
+    num = float(np.sum(np.where(pair, w[1:] * w[:-1], 0.0)))
+    den = float(np.sum(np.where(np.isfinite(r), w * w, 0.0)))
+    n = int(pair.sum())
+    if den <= 0 or n < 3:
+        return 1.0
+    rho = num / den
+    if rho <= 2.0 / np.sqrt(n):
+        return 1.0
+    rho = min(rho, 0.999)
+    return float((1.0 + rho) / (1.0 - rho))
 
 
 class OutputErrorModel:
@@ -426,7 +492,7 @@ class OutputErrorModel:
         b = np.zeros((solver.N, 2 * n, n))
         b[0, :n, :] = np.eye(n)
         sol = solve_reduced(fac, E, D, b, np.zeros((p, n)))
-        s2 = fit.cost / fit.dof
+        s2 = fit.residual_variance * fit.inflation
         x0_cov = sol.z[0, :n, :] * s2 * unit**2  # internal units -> user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
         if not p:
@@ -485,7 +551,9 @@ class OutputErrorModel:
             # a term not finite along the trajectory cannot be scored
             num[lo : lo + len(part)][~finite] = np.nan
         ssr = fit.cost
-        dof = max(fit.dof - 1, 1)
+        # raw residual degrees of freedom, the statistic corrected for
+        # correlated residuals (OutputErrorFit.inflation)
+        dof = max(fit.n_residuals - fit.n_free - 1, 1) / fit.inflation
         with np.errstate(divide="ignore", invalid="ignore"):
             usable = (
                 np.isfinite(num) & np.isfinite(den) & (den > 1e-12 * max(ssr, 1e-300))

@@ -152,14 +152,20 @@ def _entry_order(opt, target, coef_row, theta):
     return [support[k] for k in np.argsort(strength)[::-1]]
 
 
-def flag_library_columns(theta):
+def flag_library_columns(theta, z=None, columns=None):
     """Library functions unfit for simulation along the estimated trajectory.
 
-    Non-finite values (a division by a state that reaches zero), a range so
-    wide it is a singularity in all but name (``max |f| > 1e6 median |f|``),
-    and jumps (a function that is not continuous where the trajectory crosses
-    zero, like ``sign(v)``: an increment between consecutive samples larger
-    than half the function's whole range) are flagged with a reason.
+    Non-finite values (a division by a state that reaches zero) and a range
+    so wide it is a singularity in all but name (``max |f| > 1e6 median
+    |f|``) make a function *singular*. A function is *not smooth* when it
+    jumps (``sign(v)`` where ``v`` crosses zero): its increment between two
+    samples differs from what its own gradient predicts (the trapezoid rule
+    along the step, exact for quadratics, ``O(step^3)`` for smooth
+    functions) by more than half the function's whole range. (A smooth
+    function of a fast, coarsely sampled signal is not flagged: its
+    increments are large but predicted.) ``columns`` (a
+    :class:`LibraryColumns`) and ``z`` (the points of ``theta``) give the
+    gradients; without them only singularities are looked for.
 
     Returns ``(singular, nonsmooth)``, two ``{column: reason}`` dicts.
     """
@@ -179,11 +185,15 @@ def flag_library_columns(theta):
                 )
                 continue
             span = float(np.ptp(col))
-            if span > 0 and col.size > 2:
-                steps = np.abs(np.diff(col))
-                rare = np.sum(steps > 0.25 * span) < 0.2 * col.size
-                if float(steps.max()) > 0.5 * span and rare:
-                    nonsmooth[j] = "not smooth: it jumps between consecutive samples"
+            if columns is None or z is None or span == 0 or col.size < 3:
+                continue
+            grad = columns.gradient(z, [j])[:, 0, :]
+            predicted = 0.5 * np.einsum(
+                "kv,kv->k", grad[1:] + grad[:-1], np.diff(z, axis=0)
+            )
+            miss = np.abs(np.diff(col) - predicted)
+            if np.all(np.isfinite(miss)) and float(miss.max()) > 0.5 * span:
+                nonsmooth[j] = "not smooth: it jumps between samples (as sign(v) does)"
     return flags, nonsmooth
 
 
@@ -209,7 +219,12 @@ def propose_terms(study, x_hat, d_hat) -> Proposals:
         np.asarray(getattr(opt, "intercept_", 0.0), dtype=float), (es.size,)
     )
     const = theta.shape[1]
-    singular, nonsmooth = flag_library_columns(theta)
+    features = SelectedFeatures(
+        library, study.feature_names, range(theta.shape[1]), z_hat
+    )
+    singular, nonsmooth = flag_library_columns(
+        theta, z_hat, LibraryColumns(features, theta.shape[1])
+    )
     slots, start, rejected = [], [], []
     for k, i in enumerate(es):
         for j in _entry_order(opt, k, coef[i], theta):
@@ -226,7 +241,6 @@ def propose_terms(study, x_hat, d_hat) -> Proposals:
     candidates = [
         (int(i), j) for i in es for j in usable + ([] if has_constant else [const])
     ]
-    features = SelectedFeatures(library, study.feature_names, range(const), z_hat)
     return Proposals(
         library=library,
         feature_names=names,

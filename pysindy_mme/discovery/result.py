@@ -136,6 +136,7 @@ class Discovery:
     verdict: str
     warnings: list = field(default_factory=list)
     extended_fit: object | None = None
+    substeps: int = 1
 
     # ----------------------------------------------------- read off the steps
     t = property(lambda self: self.study.t)
@@ -205,6 +206,42 @@ class Discovery:
             return f"{self.state_names[i]}: {self.proposals.name(c)}"
 
         return [f"{describe(s)} ({why})" for s, why in self.confirmation.rejected]
+
+    def validate(self, y, t, u=None, window: int | None = None) -> dict:
+        """Both models on another record, by the benchmarks' free-run protocol.
+
+        Each model's initial state is fitted to the first ``window`` samples
+        (default: the study's ``validation_window``), then it runs free over
+        the whole record; the RMSE is taken over the samples after the
+        window (a run that diverges has none: ``inf``, and ``diverged_at``).
+
+        Parameters
+        ----------
+        y : array-like (n_samples, n_measured); t : array-like (n_samples,)
+        u : array-like (n_samples, n_inputs), optional
+
+        Returns
+        -------
+        dict
+            ``{"assumed": FreeRun, "extended": FreeRun}`` (``x0``, ``x``,
+            ``rmse`` per channel, ``diverged_at``).
+        """
+        from dataclasses import replace
+
+        from .inputs import check_record
+        from .steps import validation_runs
+
+        record = check_record(self.study, y, t, u, "y")
+        study = self.study
+        if window is not None:
+            study = replace(study, validation_window=int(window))
+        models = {
+            "assumed": study.model_at(self.assumed.fit.physical),
+            "extended": self.extended_model,
+        }
+        return validation_runs(
+            study, models, self.proposals.evaluate, self.substeps, record
+        )
 
     @property
     def found_correction(self) -> bool:

@@ -327,16 +327,6 @@ def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None
     return None
 
 
-def _frozen(study, model_rhs):
-    """``rhs(X (B, n), s, u (m,))`` of a fully specified model, for free runs."""
-
-    def rhs(x, s, u):
-        uu = None if u is None else np.broadcast_to(u, (x.shape[0], u.shape[-1]))
-        return model_rhs(x, np.full(x.shape[0], s), uu)
-
-    return rhs
-
-
 def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
     """Step 5: in-sample RMSE of both fits; out-of-sample free runs.
 
@@ -377,16 +367,21 @@ def _measure(study):
     return lambda x: np.asarray(x) @ np.asarray(C).T
 
 
-def validation_runs(study, models: dict, features, substeps) -> dict:
-    """Initial state from the leading window, then a free run, per model."""
-    y_v, t_v, u_v = study.validation
+def validation_runs(study, models: dict, features, substeps, record=None) -> dict:
+    """Initial state from the leading window, then a free run, per model.
+
+    ``record``: ``(y, t, u)`` (default: the study's validation record). MME
+    on the record gives the starting trajectory of the window fits and the
+    guess the free runs start Newton's method from (the free runs themselves
+    depend on the window only).
+    """
+    y_v, t_v, u_v = study.validation if record is None else record
     window = min(study.validation_window, y_v.shape[0] - 1)
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = _measure(study)
-    # MME on the window gives a starting trajectory for the window fits.
-    head = clone(study.mme).set_params(u=None if u_v is None else u_v[:window])
-    head.fit(y_v[:window], t_v[:window])
-    x_start = np.asarray(head.smoothed_x_)
+    estimate = clone(study.mme).set_params(u=u_v)
+    estimate.fit(y_v, t_v)
+    guess = np.asarray(estimate.smoothed_x_)
     runs = {}
     for name, model_rhs in models.items():
 
@@ -405,14 +400,21 @@ def validation_runs(study, models: dict, features, substeps) -> dict:
             study.measurement,
             n_offsets=m_off,
             n_substeps=substeps,
-        ).fit((), np.zeros(m_off), x_start)
-        x0 = window_fit.x[0]
+        ).fit((), np.zeros(m_off), guess[:window])
         offsets = window_fit.offsets if m_off else 0.0
 
         def shifted(x, offsets=offsets):
             return measure(x) + offsets
 
         runs[name] = free_run(
-            _frozen(study, model_rhs), x0, t_v, inputs_v, substeps, shifted, y_v, window
+            model_rhs,
+            window_fit.x[0],
+            t_v,
+            inputs_v,
+            substeps,
+            shifted,
+            y_v,
+            window,
+            guess,
         )
     return runs

@@ -194,6 +194,7 @@ def discover(
         verdict=_verdict(study, assumed, confirmation),
         warnings=notes,
         extended_fit=confirmation.fit,
+        substeps=substeps,
     )
 
 

@@ -73,9 +73,7 @@ def test_grey_box_duffing_ten_seeds():
             and set(res.terms["x2"]) == {"x1^3"}
             and abs(res.terms["x2"]["x1^3"] + 1.0) <= 0.05
         )
-    print(
-        f"\nGrey-box Duffing: parameters within 2 %, cubic within 5 %: {hits}/10"
-    )
+    print(f"\nGrey-box Duffing: parameters within 2 %, cubic within 5 %: {hits}/10")
     assert hits >= 9
 
 
