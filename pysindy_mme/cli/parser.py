@@ -82,7 +82,7 @@ HELP = {
     "--validation-window": "leading validation rows used to estimate the initial "
     "state (needs --validation-rows). Default: 50. Example: --validation-window 100",
     "--alpha": "significance level of the tests (consistency, each term, the "
-    "extended model against the assumed one). Default: 0.01. Example: --alpha 0.05",
+    "extended model against the assumed one). Default: 0.001. Example: --alpha 0.01",
     "--error-model": "MME's prior on d(t): white (the paper) or random_walk "
     "(a smooth d, usually better for a missing term of the state). "
     "Default: white. Example: --error-model random_walk",
@@ -141,7 +141,7 @@ def _discover_parser(sub):
     _add(disc, "--train-rows", metavar="A:B")
     _add(disc, "--validation-rows", metavar="A:B")
     _add(disc, "--validation-window", metavar="N")
-    _add(disc, "--alpha", default="0.01", metavar="P")
+    _add(disc, "--alpha", default="0.001", metavar="P")
     _add(disc, "--error-model", default="white", metavar="white|random_walk")
     _add(disc, "--offsets", action="store_true")
     _add(disc, "--out", default="mme_output", metavar="FOLDER")

@@ -688,7 +688,7 @@ class MMESmoother:
         message = f"reached max_iter = {self.max_iter}"
         lam = np.zeros((self.N - 1, self.n))
         logdet = np.nan
-        n_iter = 0
+        n_iter = stall = 0
         for n_iter in range(1, self.max_iter + 1):  # noqa: B007
             try:
                 dx, d_new, dth, lam, logdet, deficient = self._kkt_step(lin, W, Winv)
@@ -737,6 +737,14 @@ class MMESmoother:
                 message = "line search failed to decrease the merit function"
                 break
             x, d, theta = xt, dt_, tht
+            # Damped steps that no longer lower the merit measurably (an
+            # inexact finite-difference Jacobian of the user's model limits
+            # how far Gauss-Newton can go): stationary for all purposes.
+            stall = stall + 1 if alpha < 1 and phi0 - merit <= self.tol * phi0 else 0
+            if stall >= 2:
+                converged = True
+                message = "converged (the merit function stopped decreasing)"
+                break
             previous, lin = lin, self.linearize(x, d, theta)
             meas = self.measurement_cost(lin.r)
             if alpha == 1.0 and self._same_quadratic_model(previous, lin):

@@ -45,7 +45,9 @@ from .output_error import OutputErrorFit, OutputErrorModel, better_bic
 
 __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
 
-#: proposals fitted jointly at the start when there are at most this many
+#: proposals fitted jointly at the start (then pruned backward) when there
+#: are at most this many (a joint fit of many terms on a long record costs
+#: more than fitting them one by one)
 JOINT_START_MAX = 6
 #: rounds of swap/backward/forward passes
 MAX_ROUNDS = 4
@@ -110,7 +112,9 @@ class _Search:
         describe,
         pool,
         progress,
+        min_effect=0.0,
     ):
+        self.min_effect = float(min_effect)
         self.engine, self.assumed = engine, assumed
         self.alpha_term, self.describe, self.pool = alpha_term, describe, list(pool)
         self.progress = progress or (lambda msg: None)
@@ -157,6 +161,12 @@ class _Search:
         )
         return fit
 
+    def improves(self, small, big, n_added=1) -> tuple:
+        """``(p, relative cost reduction, ok)`` of ``big`` over ``small``."""
+        p = partial_f_p_value(small, big, n_added)
+        gain = (small.cost - big.cost) / small.cost if small.cost > 0 else 0.0
+        return p, gain, p <= self.alpha_term and gain >= self.min_effect * n_added
+
     def note(self, text):
         self.log.append(text)
         self.progress(text)
@@ -165,15 +175,31 @@ class _Search:
         self.rejected.append((slot, reason))
 
     # ------------------------------------------------------------- backward
+    def effects(self, fit) -> np.ndarray:
+        """Each coefficient's share of the misfit it removes (linearised).
+
+        Removing a term raises the cost by about ``t_raw^2`` residual
+        variances (``t_raw`` its Wald statistic before the correlation
+        correction), i.e. by ``t_raw^2 / (n - p)`` of the whole cost.
+        """
+        a = fit.n_physical
+        se = fit.std_errors[a : a + len(fit.slots)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t2 = (fit.coefficients / se) ** 2 * fit.inflation
+        raw = max(fit.n_residuals - fit.n_free, 1)
+        return np.where(np.isfinite(t2), t2 / raw, 0.0)
+
     def backward(self, slots, fit):
-        """Drop terms whose coefficient is not significant, weakest first."""
+        """Drop terms that are not significant or too small, weakest first."""
         removed = []
         while slots:
             pvals = fit.coefficient_p_values()
-            worst = int(np.argmax(pvals))
-            if pvals[worst] <= self.alpha_term:
+            effects = self.effects(fit)
+            failing = (pvals > self.alpha_term) | (effects < self.min_effect)
+            if not np.any(failing):
                 break
-            removed.append((slots[worst], float(pvals[worst])))
+            worst = int(np.argmax(np.where(failing, pvals - effects, -np.inf)))
+            removed.append((slots[worst], float(pvals[worst]), float(effects[worst])))
             keep = [k for k in range(len(slots)) if k != worst]
             slots = [slots[k] for k in keep]
             if not slots:
@@ -210,30 +236,33 @@ class _Search:
                 self.slots, self.fit = list(proposals), joint
                 self.note(f"joint fit of {len(proposals)} proposals (p = {p:.2g})")
                 return
+        # terms may only work together (Van der Pol's x2 and -x1^2 x2), so
+        # one at a time, in the regression's order, each by an actual fit
         for slot, value in zip(proposals, values):
-            current = self.fit if self.slots else start_fit
-            trial = self.refit(
-                self.slots + [slot], [*self.fit.coefficients, value], current
+            self._try_proposal(slot, value, self.fit if self.slots else start_fit)
+
+    def _try_proposal(self, slot, value, current):
+        trial = self.refit(
+            self.slots + [slot], [*self.fit.coefficients, value], current
+        )
+        if not trial.ok or trial.cost >= self.fit.cost:
+            # the regression value may start in a poor basin; from 0 the new
+            # term starts as a small perturbation of the current model
+            retry = self.refit(
+                self.slots + [slot], [*self.fit.coefficients, 0.0], current
             )
-            if not trial.ok or trial.cost >= self.fit.cost:
-                # the regression value may start in a poor basin; from 0 the
-                # new term starts as a small perturbation of the current model
-                retry = self.refit(
-                    self.slots + [slot], [*self.fit.coefficients, 0.0], current
-                )
-                trial = retry if retry.cost < trial.cost else trial
-            if not trial.ok:
-                self.reject(
-                    slot, f"its extended model cannot be fitted ({trial.message})"
-                )
-                continue
-            p = partial_f_p_value(self.fit, trial)
-            if p <= self.alpha_term:
-                self.accept(self.slots + [slot], trial)
-                self.note(f"kept {self.describe(slot)} (p = {p:.2g})")
-            else:
-                self.reject(slot, f"does not improve the fit (p = {p:.2g})")
-                self.note(f"rejected {self.describe(slot)} (p = {p:.2g})")
+            trial = retry if retry.cost < trial.cost else trial
+        if not trial.ok:
+            self.reject(slot, f"its extended model cannot be fitted ({trial.message})")
+            return
+        p, gain, ok = self.improves(self.fit, trial)
+        if ok:
+            self.accept(self.slots + [slot], trial)
+            self.note(f"kept {self.describe(slot)} (p = {p:.2g})")
+        else:
+            why = _too_weak(p, gain, self.min_effect)
+            self.reject(slot, why)
+            self.note(f"rejected {self.describe(slot)}: {why}")
 
 
 def _most_alike(features, z, ref, pool, n_best):
@@ -299,10 +328,6 @@ def _swap_round(search: _Search, checked) -> bool:
                     search.reject(gone, why)
             search.accept(new_slots, trial)
             search.tried.add(alt)
-            # the context changed: the other terms' look-alikes deserve a
-            # second look (every accepted swap lowers the BIC: no cycle)
-            checked.clear()
-            checked.add(alt)
             changed = True
     return changed
 
@@ -352,7 +377,11 @@ def _forward_step(search: _Search) -> bool:
     f_vals, steps = search.engine.scores(search.fit, pool)
     best = int(np.argmax(f_vals))
     p_best = float(stats.f.sf(f_vals[best], 1, max(search.fit.dof - 1, 1)))
-    if p_best > search.alpha_term:
+    # the score's share of the misfit (f = dssr / (ssr - dssr) * dof / inflation)
+    raw = max(search.fit.n_residuals - search.fit.n_free - 1, 1)
+    share = f_vals[best] * search.fit.inflation / raw
+    share = share / (1.0 + share)
+    if p_best > search.alpha_term or share < search.min_effect:
         return False
     slot = pool[best]
     search.tried.add(slot)
@@ -362,15 +391,26 @@ def _forward_step(search: _Search) -> bool:
     if not trial.ok:
         search.reject(slot, f"its extended model cannot be fitted ({trial.message})")
         return False
-    p = partial_f_p_value(search.fit, trial)
-    if p <= search.alpha_term:
+    p, gain, ok = search.improves(search.fit, trial)
+    if ok:
         search.accept(search.slots + [slot], trial)
         search.note(f"added {search.describe(slot)} from the library (p = {p:.2g})")
         return True
     search.reject(
-        slot, f"score test suggested it, the fit did not confirm (p = {p:.2g})"
+        slot,
+        "score test suggested it, the fit did not confirm: "
+        + _too_weak(p, gain, search.min_effect),
     )
     return False
+
+
+def _too_weak(p, gain, min_effect) -> str:
+    if gain < min_effect:
+        return (
+            f"removes only {100 * gain:.2g}% of the misfit (at least "
+            f"{100 * min_effect:.2g}% asked, min_effect)"
+        )
+    return f"does not improve the fit significantly (p = {p:.2g})"
 
 
 def confirm_terms(
@@ -383,6 +423,7 @@ def confirm_terms(
     describe,
     library_candidates=(),
     progress=None,
+    min_effect: float = 0.0,
 ) -> Confirmation:
     """Select correction terms by output-error tests (see module docstring).
 
@@ -401,15 +442,20 @@ def confirm_terms(
     library_candidates : list of (state, column)
         Every library function the forward search may add.
     progress : callable ``str -> None``, optional
+    min_effect : float
+        Every kept term must remove at least this share of the misfit of
+        the model without it (practical significance: on a long record even
+        a negligible term is statistically significant).
     """
     # Every term was picked from the whole library: each one must pass at the
     # Bonferroni level, so that the chance of any false term stays ~alpha.
     alpha_term = alpha / max(1, len(library_candidates), len(proposals))
     search = _Search(
-        engine, assumed, alpha_term, describe, library_candidates, progress
+        engine, assumed, alpha_term, describe, library_candidates, progress, min_effect
     )
     proposals = [(int(i), int(c)) for i, c in proposals]
     search.start(proposals, list(start_values), x_start)
+    _prune(search, alpha_term, min_effect)  # a joint start may hold many
     search.tried = set(search.slots)
     swap_checked = set()
     for _ in range(MAX_ROUNDS):
@@ -421,21 +467,31 @@ def confirm_terms(
             ):
                 swap_checked.clear()  # the context changed: look again
                 changed = True
-        slots, fit, removed = search.backward(search.slots, search.fit)
-        for slot, p_val in removed:
-            search.reject(slot, f"not significant in the joint fit (p = {p_val:.2g})")
-            search.note(f"removed {describe(slot)} (p = {p_val:.2g})")
-            changed = True
-        if removed:
-            if slots:
-                search.accept(slots, fit)
-            else:
-                search.slots, search.fit = [], assumed
+        changed |= _prune(search, alpha_term, min_effect)
         if search.pool and _forward_step(search):
             changed = True
         if not changed:
             break
-    return _verdict(search, assumed, alpha)
+    return _verdict(search, assumed, alpha, min_effect)
+
+
+def _prune(search: _Search, alpha_term, min_effect) -> bool:
+    """Backward elimination of the current terms; whether any left."""
+    slots, fit, removed = search.backward(search.slots, search.fit)
+    for slot, p_val, effect in removed:
+        why = (
+            f"not significant in the joint fit (p = {p_val:.2g})"
+            if p_val > alpha_term
+            else _too_weak(p_val, effect, min_effect)
+        )
+        search.reject(slot, why)
+        search.note(f"removed {search.describe(slot)}: {why}")
+    if removed:
+        if slots:
+            search.accept(slots, fit)
+        else:
+            search.slots, search.fit = [], search.assumed
+    return bool(removed)
 
 
 def _library_inputs(engine: OutputErrorModel, fit: OutputErrorFit):
@@ -444,16 +500,19 @@ def _library_inputs(engine: OutputErrorModel, fit: OutputErrorFit):
     return fit.x if u is None else np.hstack([fit.x, u])
 
 
-def _verdict(search: _Search, assumed: OutputErrorFit, alpha: float) -> Confirmation:
+def _verdict(search: _Search, assumed: OutputErrorFit, alpha, min_effect):
     """The extended model against the assumed one: keep the terms or none."""
     if not search.slots:
         return Confirmation([], None, search.rejected, float("nan"), search.log)
     fit = search.fit
     p_total = partial_f_p_value(assumed, fit, n_added=len(search.slots))
-    if p_total > alpha:
-        search.rejected.extend(
-            (s, f"extended model not significant (p = {p_total:.2g})")
-            for s in search.slots
+    gain = (assumed.cost - fit.cost) / assumed.cost if assumed.cost > 0 else 0.0
+    if p_total > alpha or gain < min_effect:
+        why = (
+            f"extended model not significant (p = {p_total:.2g})"
+            if p_total > alpha
+            else f"the extended model removes only {100 * gain:.2g}% of the misfit"
         )
+        search.rejected.extend((s, why) for s in search.slots)
         return Confirmation([], None, search.rejected, p_total, search.log)
     return Confirmation(list(search.slots), fit, search.rejected, p_total, search.log)

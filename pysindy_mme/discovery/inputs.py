@@ -116,6 +116,7 @@ class Study:
     parameter_names: list = field(default_factory=list)
     parameter_init: np.ndarray = field(default_factory=lambda: np.zeros(0))
     offsets: bool = False
+    min_effect: float = 0.01
 
     @property
     def n_inputs(self) -> int:
@@ -141,9 +142,12 @@ def _library(feature_library):
 
 def _optimizer(optimizer):
     if optimizer is None:
+        # The paper's modified stepwise regression: its floating threshold
+        # keeps the strongest terms of d(t) as proposals; the confirmation
+        # then settles them and searches the library for what is missing.
         from ..optimizers import FloatingFStepwise
 
-        return FloatingFStepwise()
+        return FloatingFStepwise.paper()
     if not (hasattr(optimizer, "fit") and hasattr(optimizer, "get_params")):
         raise TypeError(
             f"optimizer must be a pysindy optimizer, got {type(optimizer).__name__}"
@@ -336,13 +340,14 @@ def check_study(
     feature_names=None,
     u=None,
     validation=None,
-    alpha=0.01,
+    alpha=0.001,
     refit=True,
     assumed_equations=None,
     input_hold="linear",
     validation_window=50,
     parameters=None,
     offsets=False,
+    min_effect=0.01,
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
@@ -355,6 +360,9 @@ def check_study(
     n_samples = y.shape[0]
     t = val.check_time(t, n_samples, "t")
     alpha = val.check_probability(alpha, "alpha")
+    min_effect = val.check_positive_number(min_effect, "min_effect", strict=False)
+    if min_effect >= 1:
+        raise ValueError(f"min_effect must be a share in [0, 1), got {min_effect}")
     if not isinstance(refit, (bool, np.bool_)):
         raise TypeError(f"refit must be True or False, got {refit!r}")
     if input_hold not in HOLDS:
@@ -462,4 +470,5 @@ def check_study(
         parameter_names=list(params),
         parameter_init=np.array(list(params.values()), dtype=float),
         offsets=bool(offsets),
+        min_effect=float(min_effect),
     )

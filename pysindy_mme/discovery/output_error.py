@@ -137,7 +137,10 @@ class OutputErrorFit:
         """
         if self._inflation is None:
             self._inflation = 1.0
-            if self._state is not None and np.isfinite(self.cost):
+            fixed = getattr(self._engine, "noise_inflation", None)
+            if fixed is not None:
+                self._inflation = float(fixed)
+            elif self._state is not None and np.isfinite(self.cost):
                 self._inflation = residual_inflation(
                     self._state[1].residuals, self._engine.R
                 )
@@ -277,6 +280,8 @@ class OutputErrorModel:
         self.measurement = measurement
         self.n_substeps = int(n_substeps)
         self.n_residuals = int(np.isfinite(self.y).sum())
+        #: variance inflation of the measurement noise (None: each fit's own)
+        self.noise_inflation = None
 
     # ----------------------------------------------------------------- setup
     def _solver(self, slots, theta0, max_iter, tol):
@@ -422,7 +427,7 @@ class OutputErrorModel:
 
     def with_substeps(self, n_substeps: int) -> OutputErrorModel:
         """The same record and model, integrated with ``n_substeps``."""
-        return OutputErrorModel(
+        other = OutputErrorModel(
             self.base,
             self.n_states,
             self.features,
@@ -435,6 +440,8 @@ class OutputErrorModel:
             self.n_offsets,
             n_substeps,
         )
+        other.noise_inflation = self.noise_inflation
+        return other
 
     def integrator_effect(self, fit: OutputErrorFit):
         """How far the fit would move with twice the RK4 steps (linearised).

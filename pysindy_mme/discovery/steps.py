@@ -287,6 +287,7 @@ def confirm_on_measurements(
         describe,
         library_candidates=proposals.candidates,
         progress=progress,
+        min_effect=study.min_effect,
     )
     confirmation.rejected[:0] = list(proposals.rejected)
     return confirmation

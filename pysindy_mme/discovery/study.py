@@ -14,6 +14,7 @@ from ..core.progress import Progress
 from ..exceptions import DiscoveryWarning
 from .extended import ExtendedModel
 from .inputs import check_study
+from .output_error import residual_inflation
 from .propose import propose_terms
 from .result import Discovery, TermEstimate
 from .steps import (
@@ -47,7 +48,7 @@ def discover(
     validation=None,
     W="auto",
     error_model="white",
-    alpha=0.01,
+    alpha=0.001,
     refit=True,
     assumed_equations=None,
     mme=None,
@@ -55,6 +56,7 @@ def discover(
     validation_window=50,
     parameters=None,
     offsets=False,
+    min_effect=0.01,
     verbose=False,
 ):
     """Find what an assumed model gets wrong, name the cause, fix it, measure it.
@@ -93,9 +95,12 @@ def discover(
         MME weight (see :class:`MME`).
     error_model : {"white", "random_walk"}, default "white"
         MME's prior on the model error (see :class:`MME`).
-    alpha : float
+    alpha : float, default 0.001
         Significance level of the tests (consistency, terms, F-test of the
-        extended against the assumed model).
+        extended against the assumed model). Each term is tested at
+        ``alpha / n_candidates`` (Bonferroni over the library), so the chance
+        that a study reports any term when the assumed model is right stays
+        below ``alpha``: one in a thousand by default.
     refit : bool
         Settle the terms on the measurements by output error (recommended).
     assumed_equations : list of str, optional
@@ -120,6 +125,11 @@ def discover(
         jointly with the correction; the report gives them with confidence
         intervals apart from the missing effects. A library term that only
         re-estimates one of them cannot enter (it is collinear with it).
+    min_effect : float, default 0.01
+        Practical significance: every identified term must remove at least
+        this share of the misfit of the model without it (on a long record
+        a negligible term is still statistically significant; on a short
+        one the significance test decides). 0 keeps every significant term.
     offsets : bool, default False
         Estimate a constant offset per measured channel (``y = g(x) + o``)
         instead of letting the dynamics absorb it.
@@ -147,6 +157,7 @@ def discover(
         validation_window=validation_window,
         parameters=parameters,
         offsets=offsets,
+        min_effect=min_effect,
         assumed_model=assumed_model,
         n_states=n_states,
         measured=measured,
@@ -166,6 +177,9 @@ def discover(
     progress.stage(f"3. regression of d(t) proposes {len(proposals.slots)} term(s)")
     substeps = max(assumed.substeps, _substeps(study, assumed, proposals, estimate.x))
     engine = output_error_engine(study, proposals.evaluate, substeps)
+    engine.noise_inflation = residual_inflation(
+        estimate.mme.residuals_, study.noise_cov
+    )
     assumed = baseline(study, assumed, engine, estimate.x)
     confirmation = confirm_on_measurements(  # 4
         study, engine, assumed, estimate, proposals, progress.step
