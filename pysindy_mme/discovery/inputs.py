@@ -147,7 +147,8 @@ def _optimizer(optimizer):
         # then settles them and searches the library for what is missing.
         from ..optimizers import FloatingFStepwise
 
-        return FloatingFStepwise.paper()
+        paper = getattr(FloatingFStepwise, "paper", None)
+        return FloatingFStepwise() if paper is None else paper()
     if not (hasattr(optimizer, "fit") and hasattr(optimizer, "get_params")):
         raise TypeError(
             f"optimizer must be a pysindy optimizer, got {type(optimizer).__name__}"
