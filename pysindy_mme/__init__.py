@@ -6,7 +6,10 @@ a library of functions of the state (:class:`FloatingFStepwise`,
 (:func:`discover`).
 """
 
+from . import datasets
+from .core.noise import NoiseDiagnostics, estimate_noise_variance
 from .differentiation import MME
+from .differentiation.sindy_route import extended_model_from_sindy
 from .discovery import Discovery, ExtendedModel, discover
 from .exceptions import (
     DiscoveryWarning,
@@ -24,6 +27,10 @@ __all__ = [
     "FloatingFStepwise",
     "PowerLibrary",
     "discover",
+    "datasets",
+    "estimate_noise_variance",
+    "extended_model_from_sindy",
+    "NoiseDiagnostics",
     "DiscoveryWarning",
     "DivergenceError",
     "ExcludedFeaturesWarning",

@@ -11,12 +11,15 @@ transcription (``transcription.py``: Gauss-Newton over every sample's state,
 
 from .mme import MME
 from .noise import difference_noise_variance, noise_covariance
+from .sindy_route import check_sindy_route, extended_model_from_sindy
 from .transcription import MMESmoother, SmootherResult, internal_unit
 
 __all__ = [
     "MME",
     "MMESmoother",
     "SmootherResult",
+    "check_sindy_route",
+    "extended_model_from_sindy",
     "difference_noise_variance",
     "internal_unit",
     "noise_covariance",

@@ -284,6 +284,19 @@ class MME(BaseDifferentiation):
         self.fit(x, t)
         return self.d_ if self.target == "error" else self.derivative_
 
+    def extended_model(self, sindy_model, assumed_equations=None, check=True):
+        """The assumed model plus the correction ``sindy_model`` learned.
+
+        ``sindy_model`` is a ``pysindy.SINDy`` fitted with this estimator as
+        its differentiation method (so it holds the correction only); see
+        :func:`~pysindy_mme.differentiation.sindy_route.extended_model_from_sindy`
+        (and prefer :func:`~pysindy_mme.discover`, which refits the terms to
+        the measurements, when the coefficients matter).
+        """
+        from .sindy_route import extended_model_from_sindy
+
+        return extended_model_from_sindy(self, sindy_model, assumed_equations, check)
+
     # ----------------------------------------------------------------- fit
     def fit(self, y, t=1.0, u=None):
         """Estimate the states and the model error from measurements.

@@ -85,6 +85,8 @@ class Gain:
     validation_rmse_extended: np.ndarray | None = None
     validation_window: int | None = None
     notes: list = field(default_factory=list)
+    #: the validation free runs, ``{"assumed": FreeRun, "extended": FreeRun}``
+    validation_runs: dict | None = None
 
     @property
     def ratio(self) -> np.ndarray:

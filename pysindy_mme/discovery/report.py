@@ -130,8 +130,21 @@ def _parameters(res) -> list:
     ]
 
 
+def _offsets(res) -> list:
+    if res.offsets is None:
+        return []
+    fit = res.extended_fit or res.assumed.fit
+    k0 = fit.n_physical + len(fit.slots)
+    ci = fit.confidence_intervals()[k0:]
+    parts = [
+        f"{name} {signed(o)} [{signed(lo)}, {signed(hi)}]"
+        for name, o, (lo, hi) in zip(res.channel_names, res.offsets, ci)
+    ]
+    return ["Measurement offsets (fitted, 95% CI): " + "; ".join(parts)]
+
+
 def _cause(res) -> list:
-    out = ["2. The cause", "-" * 12] + _parameters(res)
+    out = ["2. The cause", "-" * 12] + _parameters(res) + _offsets(res)
     contradicted = res.consistency_p_value < res.alpha
     for state, terms in res.terms.items():
         if terms:

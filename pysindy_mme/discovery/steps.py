@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -345,6 +346,7 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
     if study.validation is None:
         return gain
     runs = validation_runs(study, models, features, substeps)
+    gain.validation_runs = runs
     gain.validation_rmse_assumed = runs["assumed"].rmse
     gain.validation_rmse_extended = runs["extended"].rmse
     gain.validation_window = study.validation_window
@@ -381,7 +383,10 @@ def validation_runs(study, models: dict, features, substeps, record=None) -> dic
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = _measure(study)
     estimate = clone(study.mme).set_params(u=u_v)
-    estimate.fit(y_v, t_v)
+    with warnings.catch_warnings():
+        # an internal start-up estimate: its notes are not about the user's study
+        warnings.simplefilter("ignore")
+        estimate.fit(y_v, t_v)
     guess = np.asarray(estimate.smoothed_x_)
     runs = {}
     for name, model_rhs in models.items():

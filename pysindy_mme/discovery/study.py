@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 
 from ..core.progress import Progress
+from ..core.tables import sig
 from ..exceptions import DiscoveryWarning
 from .extended import ExtendedModel
 from .inputs import check_study
@@ -339,10 +340,12 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
         if p_fit < study.alpha:
             notes.append(
                 "the extended model still does not fit the data to the noise level "
-                f"(chi2 = {fit.cost:.4g} on {fit.dof} dof, p = {p_fit:.2g}): the "
-                "library may lack the missing effect, the noise variance may be too "
-                "small, or the search stopped in a local optimum"
+                f"(chi2 = {sig(fit.cost)} on {sig(fit.dof, 5)} dof, "
+                f"p = {p_fit:.2g}): the library may lack the missing effect, the "
+                "noise variance may be too small, or the search stopped in a local "
+                "optimum"
             )
+        notes += _noise_sanity(study, fit)
         check = step_size_check(engine, fit)
         if check:
             notes.append(check)
@@ -350,6 +353,22 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
         for c in sorted(used & set(proposals.nonsmooth)):
             notes.append(f"{proposals.name(c)} is {proposals.nonsmooth[c]}")
     return notes
+
+
+def _noise_sanity(study, fit) -> list:
+    """Fitted residuals far below the stated noise: say so, and the likely slip."""
+    ratio = fit.residual_variance  # 1 when the model fits to the stated noise
+    if not np.isfinite(ratio) or ratio >= 0.25:
+        return []
+    sd = np.sqrt(np.diag(study.noise_cov))
+    fitted = sd * np.sqrt(ratio)
+    return [
+        "the extended model fits the measurements far below the stated noise "
+        f"(residual sd {', '.join(sig(v) for v in fitted)} where the noise sd is "
+        f"{', '.join(sig(v) for v in sd)}): was a standard deviation given as a "
+        "variance (noise_variance is the variance, sd squared), or did an 'auto' "
+        "estimate take signal for noise? Tests and intervals assume the stated noise"
+    ]
 
 
 def _verdict(study, assumed, confirmation) -> str:
