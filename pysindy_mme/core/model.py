@@ -163,21 +163,8 @@ def as_model_function(func, n_states: int, name: str = "assumed_model"):
     return ModelFunction(func, n_states, name=name)
 
 
-def _input_interpolator(t, u):
-    """Piecewise-linear interpolation of an input sampled on ``t``."""
-    if u is None:
-        return lambda s: None
-    if callable(u):
-        return lambda s: np.atleast_1d(np.asarray(u(s), dtype=float))
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1:
-        u = u[:, None]
-    t = np.asarray(t, dtype=float)
-
-    def at(s):
-        return np.array([np.interp(s, t, u[:, j]) for j in range(u.shape[1])])
-
-    return at
+class _Budget(Exception):
+    """Raised inside the right-hand side when a simulation takes too many steps."""
 
 
 def simulate_model(
@@ -190,6 +177,8 @@ def simulate_model(
     rtol: float = 1e-9,
     atol: float = 1e-11,
     method: str = "LSODA",
+    max_evaluations: int | None = None,
+    on_divergence: str = "nan",
 ) -> np.ndarray:
     """Integrate ``dx/dt = model(x, t, u)`` from ``x0`` and sample it on ``t``.
 
@@ -202,43 +191,76 @@ def simulate_model(
         Increasing sample times; the simulation starts at ``t[0]``.
     u : array-like of shape (n_samples, n_inputs), callable ``u(t)`` or None
         Input; arrays are interpolated linearly between samples.
+    max_evaluations : int, optional
+        Budget of model evaluations (default ``200 n_samples + 10^4``): a
+        stiff or exploding model stops here instead of hanging.
+    on_divergence : {"nan", "raise"}
+        What a run that blows up (leaves ``1e6`` times the initial scale, or
+        the finite range) or exhausts its budget gives: NaN in the rows it
+        did not reach, or a :class:`~pysindy_mme.DivergenceError` naming the
+        time and the state.
 
     Returns
     -------
     x : ndarray, shape (n_samples, n_states)
-        The trajectory. If the solver fails (the model blows up), the rows it
-        did not reach are NaN, so callers can measure the failure instead of
-        crashing on it.
     """
+    from ..exceptions import DivergenceError
+    from .integrate import InputSignal
+
     x0 = np.asarray(x0, dtype=float).ravel()
     t = np.asarray(t, dtype=float)
     f = as_model_function(model, n_states or x0.size)
-    u_at = _input_interpolator(t, u)
+    signal = InputSignal(u, t)
+    allowed = int(max_evaluations or 200 * t.size + 10_000)
+    budget = [allowed]
 
     def rhs(s, x):
-        ui = u_at(s)
-        out = f(x[None, :], np.array([s]), None if ui is None else ui[None, :])
-        return out[0]
+        budget[0] -= 1
+        if budget[0] < 0:
+            raise _Budget
+        ui = signal.at(np.array([s]))
+        return f(x[None, :], np.array([s]), ui)[0]
 
     # Bound the state so that a diverging model ends the run instead of hanging.
     limit = 1e6 * max(1.0, float(np.max(np.abs(x0))))
 
     def blow_up(s, x):
-        return limit - np.max(np.abs(x))
+        size = float(np.max(np.abs(x)))
+        return limit - size if np.isfinite(size) else -1.0
 
     blow_up.terminal = True
-    sol = solve_ivp(
-        rhs,
-        (t[0], t[-1]),
-        x0,
-        t_eval=t,
-        method=method,
-        rtol=rtol,
-        atol=atol,
-        events=blow_up,
-    )
     out = np.full((t.size, x0.size), np.nan)
-    out[: sol.y.shape[1]] = sol.y.T
+    reason = None
+    try:
+        with np.errstate(all="ignore"):
+            sol = solve_ivp(
+                rhs,
+                (t[0], t[-1]),
+                x0,
+                t_eval=t,
+                method=method,
+                rtol=rtol,
+                atol=atol,
+                events=blow_up,
+            )
+        out[: sol.y.shape[1]] = sol.y.T
+        if sol.status == 1 or not sol.success or sol.y.shape[1] < t.size:
+            reason = "it left the bound" if sol.status == 1 else sol.message
+    except _Budget:
+        reason = f"it needed more than {allowed} model evaluations (stiff or exploding)"
+    except (ValueError, FloatingPointError) as exc:  # root finding on NaN, say
+        reason = f"the integrator failed ({exc})"
+    finite = np.all(np.isfinite(out), axis=1)
+    if reason is None and np.all(finite):
+        return out
+    if on_divergence == "raise":
+        k = int(np.argmin(finite)) if not np.all(finite) else t.size - 1
+        last = out[k - 1] if k > 0 else x0
+        worst = int(np.argmax(np.abs(last)))
+        raise DivergenceError(
+            f"the simulation diverged near t = {t[k]:.6g}: {reason or 'not finite'}; "
+            f"state {worst} was {last[worst]:.6g} at t = {t[max(k - 1, 0)]:.6g}"
+        )
     return out
 
 

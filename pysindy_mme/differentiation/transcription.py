@@ -191,6 +191,8 @@ class SmootherResult:
     message : str
     rank_deficient : bool
         Some combination of the parameters is not determined by the data.
+    nonfinite_trials : int
+        Line-search trial steps at which the model blew up (stepped back).
     """
 
     W: np.ndarray
@@ -209,6 +211,7 @@ class SmootherResult:
     message: str
     theta: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rank_deficient: bool = False
+    nonfinite_trials: int = 0
     _lin: _Linearization | None = field(default=None, repr=False)
 
 
@@ -688,7 +691,7 @@ class MMESmoother:
         message = f"reached max_iter = {self.max_iter}"
         lam = np.zeros((self.N - 1, self.n))
         logdet = np.nan
-        n_iter = stall = 0
+        n_iter = stall = nonfinite = 0
         for n_iter in range(1, self.max_iter + 1):  # noqa: B007
             try:
                 dx, d_new, dth, lam, logdet, deficient = self._kkt_step(lin, W, Winv)
@@ -729,6 +732,8 @@ class MMESmoother:
                         + self.model_error_cost(dt_, W)
                         + mu * float(np.abs(phi_t - xt[1:]).sum())
                     )
+                if not np.isfinite(merit):
+                    nonfinite += 1  # this trial step made the model blow up
                 if np.isfinite(merit) and merit <= phi0 + 1e-4 * alpha * slope:
                     accepted = True
                     break
@@ -754,9 +759,11 @@ class MMESmoother:
                 converged = True
                 message = "converged (linear problem, exact step)"
                 break
-        return self._result(
+        res = self._result(
             W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
         )
+        res.nonfinite_trials = nonfinite
+        return res
 
     def _result(
         self, W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient

@@ -137,12 +137,17 @@ class ExtendedModel:
         """Integrate the extended model from ``x0`` on the times ``t``.
 
         ``u`` is an array on ``t`` (interpolated linearly) or a callable
-        ``u(t)``. Keyword arguments go to :func:`scipy.integrate.solve_ivp`
-        (``rtol``, ``atol``, ``method``). Rows the solver did not reach (the
-        model blew up) are NaN.
+        ``u(t)``. Keyword arguments go to
+        :func:`~pysindy_mme.core.model.simulate_model` (``rtol``, ``atol``,
+        ``method``, ``max_evaluations``). It returns, or raises
+        :class:`~pysindy_mme.DivergenceError` naming the time and the state
+        where the model blew up (or turned so stiff that it exhausted its
+        budget of evaluations: it never hangs); ``TypeError``/``ValueError``
+        for bad arguments.
         """
         if self.n_inputs and u is None:
             raise TypeError(f"u is required: the model has inputs {self.input_names}")
+        kwargs.setdefault("on_divergence", "raise")
         return simulate_model(self, x0, t, u, n_states=self.n_states, **kwargs)
 
     def equations(self, precision: int = 4) -> list:

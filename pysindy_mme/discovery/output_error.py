@@ -335,15 +335,20 @@ class OutputErrorModel:
         bounded = np.all(np.isfinite(res.x)) and res.max_defect <= 1e-6 * max(
             1.0, float(np.max(np.abs(res.x)))
         )
-        converged = bool(res.converged and bounded)
-        message = (
-            res.message
-            if bounded
-            else (
-                f"{res.message}; the trajectory does not follow the model "
+        # a fit during which some trial made the model blow up is not called
+        # converged, even when the line search stepped back to a finite point
+        converged = bool(res.converged and bounded and not res.nonfinite_trials)
+        message = res.message
+        if not bounded:
+            message += (
+                "; the trajectory does not follow the model "
                 f"(largest defect {res.max_defect:.3g})"
             )
-        )
+        if res.nonfinite_trials:
+            message += (
+                f"; {res.nonfinite_trials} trial step(s) made the model blow up "
+                "(the line search stepped back)"
+            )
         fit = OutputErrorFit(
             slots=slots,
             theta=res.theta,

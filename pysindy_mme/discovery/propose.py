@@ -193,7 +193,17 @@ def flag_library_columns(theta, z=None, columns=None):
             )
             miss = np.abs(np.diff(col) - predicted)
             if np.all(np.isfinite(miss)) and float(miss.max()) > 0.5 * span:
-                nonsmooth[j] = "not smooth: it jumps between samples (as sign(v) does)"
+                if med > 0 and float(mag.max()) > 30 * med:
+                    # it jumps through infinity: a pole the trajectory crosses
+                    flags[j] = (
+                        "singular: it jumps through very large values (largest "
+                        f"{mag.max():.3g}, typical {med:.3g}) where the trajectory "
+                        "crosses a pole"
+                    )
+                else:
+                    nonsmooth[j] = (
+                        "not smooth: it jumps between samples (as sign(v) does)"
+                    )
     return flags, nonsmooth
 
 

@@ -289,7 +289,7 @@ def _terms(study, proposals, confirmation):
                 ci_low=float(ci[k, 0]),
                 ci_high=float(ci[k, 1]),
                 partial_f=_partial_f(proposals, study, i, c),
-                p_value=float(p_values[k]),
+                p_value=float(p_values[k]) if se[k] > 0 else float("nan"),
                 rms_term=rms_term,
                 share_of_correction=rms_term / rms_corr if rms_corr > 0 else np.nan,
                 share_of_dynamics=rms_term / rms_dyn if rms_dyn > 0 else np.nan,
