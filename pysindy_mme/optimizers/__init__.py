@@ -7,6 +7,8 @@ FloatingFStepwise())``). The modules, one job each:
 * :mod:`.incremental_qr`: the QR state from which partial F-ratios follow;
 * :mod:`.selection`: the Phase I / Phase II machine over that state;
 * :mod:`.final_fit`: coefficients and ANOVA table of the chosen model;
+* :mod:`.rules`: which statistic meets which threshold (default and classic);
+* :mod:`.robust`: Newey-West partial F-ratios for autocorrelated residuals;
 * :mod:`.stepwise`: the estimator (parameters, validation, fit);
 * :mod:`.anova`: statistics (ANOVA table, F critical values, accurate lstsq);
 * :mod:`.tables`, :mod:`.summary`: text and HTML reports.

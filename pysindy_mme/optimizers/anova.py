@@ -123,6 +123,29 @@ class AnovaTable:
     out_partial_f, out_p_values : ndarray
         Their partial F-ratios of entry (eq. 19) and p-values (``nan`` for a
         column that is collinear with the model).
+    robust : bool
+        Whether the robust statistics below were computed (the default rule
+        of :class:`~pysindy_mme.optimizers.FloatingFStepwise`); otherwise
+        they are empty or ``nan``.
+    hac_lags : int
+        Newey-West bandwidth of the robust statistics.
+    robust_partial_f, robust_p_values : ndarray (k,)
+        Newey-West robust partial F-ratio of each function in the model and
+        its p-value (``F(1, dof_residual)``).
+    intercept_robust_partial_f : float
+        The same for the constant.
+    out_robust_partial_f, out_robust_p_values : ndarray
+        Robust partial F-ratios of entry of ``out_features`` and p-values.
+    n_candidates : int
+        Family size of the multiplicity correction: the number of eligible
+        candidates outside the model (1: no correction).
+    lag1_autocorrelation : float
+        Lag-1 autocorrelation of the weighted residual, rows in the order given.
+    effective_n : float
+        The number of independent observations the residual is worth:
+        rows x variance / long-run variance (Newey-West). Far below ``n``
+        means strongly autocorrelated residuals: classic F-ratios overstate
+        the evidence by about ``n / effective_n``.
     """
 
     n: float
@@ -150,6 +173,16 @@ class AnovaTable:
     out_features: tuple = ()
     out_partial_f: np.ndarray = field(default_factory=lambda: np.zeros(0))
     out_p_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    robust: bool = False
+    hac_lags: int = 0
+    robust_partial_f: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    robust_p_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    intercept_robust_partial_f: float = np.nan
+    out_robust_partial_f: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    out_robust_p_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    n_candidates: int = 1
+    lag1_autocorrelation: float = np.nan
+    effective_n: float = np.nan
 
     @property
     def variance_of_estimate(self) -> float:
@@ -160,6 +193,23 @@ class AnovaTable:
     def std_error_of_estimate(self) -> float:
         """Square root of the variance of estimate."""
         return float(np.sqrt(self.ms_residual))
+
+    @property
+    def adjusted_p_values(self) -> np.ndarray:
+        """Bonferroni-adjusted p-values of the functions in the model.
+
+        ``min(1, n_candidates * p)`` of the robust p-values (of the classic
+        ones without robust statistics): a function stays in the model of the
+        default rule when this is at most ``alpha``.
+        """
+        p = self.robust_p_values if self.robust else self.p_values
+        return np.minimum(1.0, self.n_candidates * np.asarray(p, dtype=float))
+
+    @property
+    def out_adjusted_p_values(self) -> np.ndarray:
+        """Bonferroni-adjusted p-values of entry of ``out_features``."""
+        p = self.out_robust_p_values if self.robust else self.out_p_values
+        return np.minimum(1.0, self.n_candidates * np.asarray(p, dtype=float))
 
     @property
     def intercept_p_value(self) -> float:

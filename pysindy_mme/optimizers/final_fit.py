@@ -11,8 +11,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .anova import fit_anova, lstsq_refined
+from .anova import f_pvalue, fit_anova, lstsq_refined
 from .incremental_qr import IncrementalQR
+from .robust import robust_table_statistics
 from .screening import Screen
 
 __all__ = ["final_fit"]
@@ -27,7 +28,7 @@ def final_fit(
     *,
     tolerance: float,
     max_report: int,
-    remove_threshold: float,
+    rule,
     drop_constant: bool,
 ):
     """Coefficients on the support (accurate QR solve) and the ANOVA table.
@@ -36,6 +37,9 @@ def final_fit(
     back). The fit runs on the support and reported columns only, each
     multiplied by its power-of-two ``screen.scale``; the table and the
     coefficients are then converted to the units of the data (exactly).
+    With a robust ``rule`` (:class:`~.rules.FamilywiseRule`) the table also
+    holds the robust statistics, and the constant is kept or dropped by its
+    robust partial F-ratio.
     """
     support = np.sort(np.asarray(state.support, dtype=int))
     top = []
@@ -65,8 +69,11 @@ def final_fit(
         with np.errstate(over="ignore", under="ignore"):
             return float(value * y_unit * y_unit)
 
+    if rule.robust:
+        table = _with_robust_statistics(table, xs, y, w, k, rule)
     table = replace(
         table,
+        n_candidates=rule.family_size(k),
         features=tuple(int(j) for j in support),
         out_features=tuple(top),
         coefficients=table.coefficients * col_unit * y_unit,
@@ -89,7 +96,12 @@ def final_fit(
         resid = y * sw - xw @ origin
         insignificant = float(resid @ resid) <= state.floor2
     else:
-        insignificant = not table.intercept_partial_f >= remove_threshold
+        f_constant = (
+            table.intercept_robust_partial_f
+            if rule.robust
+            else table.intercept_partial_f
+        )
+        insignificant = not f_constant >= rule.constant_threshold(k)
     dropped = bool(drop_constant and insignificant)
     if dropped:
         icpt = 0.0
@@ -101,3 +113,27 @@ def final_fit(
             row[screen.carrier] = icpt / screen.carrier_value
             icpt = 0.0
     return row, icpt, table, dropped
+
+
+def _with_robust_statistics(table, xs, y, w, k: int, rule):
+    """``table`` with the robust (Newey-West) statistics filled in."""
+    sw = np.sqrt(w)
+    design = np.column_stack([sw, xs[:, :k] * sw[:, None]])
+    assessed = np.isfinite(table.out_partial_f)
+    cand = xs[:, k:][:, assessed] * sw[:, None]
+    stats = robust_table_statistics(design, y * sw, cand, rule.lags)
+    out_f = np.full(table.out_partial_f.shape, np.nan)
+    out_f[assessed] = stats["out"]
+    dof = table.dof_residual
+    return replace(
+        table,
+        robust=True,
+        hac_lags=rule.lags,
+        robust_partial_f=stats["in_model"][1:],
+        robust_p_values=np.atleast_1d(f_pvalue(stats["in_model"][1:], 1, dof)),
+        intercept_robust_partial_f=float(stats["in_model"][0]),
+        out_robust_partial_f=out_f,
+        out_robust_p_values=np.atleast_1d(f_pvalue(out_f, 1, dof - 1)),
+        lag1_autocorrelation=stats["lag1"],
+        effective_n=stats["effective_n"],
+    )

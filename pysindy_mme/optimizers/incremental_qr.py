@@ -156,6 +156,19 @@ class IncrementalQR:
         C[:cap] = self.C
         self.Q, self.C = Q, C
 
+    def residualised(self, cols) -> np.ndarray:
+        """Columns ``cols`` (weighted, scaled) minus their projection on the model.
+
+        Explicit (``O(n k)`` per column, Gram-Schmidt twice): for the few
+        columns whose robust statistics are needed.
+        """
+        k1 = self.k + 1
+        Qk = self.Q[:, :k1]
+        r = self.x[:, cols] * self.sw[:, None] * self.scale[cols]
+        r = r - Qk @ (Qk.T @ r)
+        r -= Qk @ (Qk.T @ r)
+        return r
+
     def _refresh(self, cols):
         """Recompute ``r_j`` for ``cols`` explicitly; refresh their statistics."""
         k1 = self.k + 1

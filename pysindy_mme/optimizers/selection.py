@@ -4,6 +4,8 @@ Phase I (Draper & Smith's stepwise regression): in each iteration, if a
 function in the model has a partial F-ratio (eq. 20) below the removal
 threshold, the weakest one leaves; otherwise the candidate with the largest
 partial F-ratio of entry (eq. 19) enters if it reaches the entry threshold.
+Which F-ratios (classic or Newey-West robust) and which thresholds is the
+rule's business (:mod:`.rules`).
 
 Phase II (the paper's floating threshold): the threshold becomes the largest
 partial F-ratio in the model divided by ``float_ratio``; the weakest function
@@ -27,7 +29,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Selection", "Step", "select"]
+from .robust import lag1_autocorrelation
+
+__all__ = ["AUTO_LAG1", "Selection", "Step", "engage_phase_two", "select"]
+
+# floating="auto" engages Phase II when the Phase I residual's lag-1
+# autocorrelation exceeds this. Smoothed finite-difference derivatives leave
+# at most 0.66 (every record of the drop-in benchmark); MME's d(t) on the
+# paper's Van der Pol record 0.94-0.98.
+AUTO_LAG1 = 0.9
 
 
 @dataclass(frozen=True)
@@ -77,11 +87,18 @@ class Selection:
     cycle : dict or None
         ``{"phase", "iteration", "length"}`` of the cycle that stopped the
         selection (the phase and iteration at which a state repeated).
+    phase_two : bool
+        Whether Phase II ran.
+    phase_one_lag1 : float
+        Lag-1 autocorrelation of the residual at the end of Phase I (what
+        ``floating="auto"`` decides on).
     """
 
     steps: list = field(default_factory=list)
     converged: bool = True
     cycle: dict | None = None
+    phase_two: bool = False
+    phase_one_lag1: float = 0.0
 
 
 class _CycleGuard:
@@ -124,10 +141,18 @@ class _CycleGuard:
         return False
 
 
-def _next_action(state, phase: int, enter_thr: float, remove_thr: float, ratio):
-    """``(kind, column, partial F, threshold)`` of the next step, or None."""
+def _next_action(state, rule, phase: int, ratio: float):
+    """``(kind, column, partial F, threshold)`` of the next step, or None.
+
+    Phase I compares the rule's statistics with its thresholds; Phase II the
+    classic F-ratios with ``max(rule threshold, strongest F / ratio)``.
+    """
+    enter_thr, remove_thr = rule.thresholds(state.k)
     k = state.k
-    f_in = state.in_model_f()[1:] if k else np.zeros(0)
+    if phase == 1:
+        f_in = rule.in_model_f(state) if k else np.zeros(0)
+    else:
+        f_in = state.in_model_f()[1:] if k else np.zeros(0)
     # At an exact fit (noise-free target) every partial F-ratio is infinite
     # in principle; rounding-level values cannot be ranked, so the floating
     # threshold does not apply.
@@ -140,7 +165,7 @@ def _next_action(state, phase: int, enter_thr: float, remove_thr: float, ratio):
         return ("remove", state.support[i], float(f_in[i]), remove_thr)
     if state.exact_fit():
         return None
-    f_cand = state.candidate_f()
+    f_cand = rule.candidate_f(state) if phase == 1 else state.candidate_f()
     if f_cand.size:
         best = int(np.argmax(f_cand))
         # -inf marks "not eligible"; +inf (exact improvement) may enter.
@@ -149,13 +174,29 @@ def _next_action(state, phase: int, enter_thr: float, remove_thr: float, ratio):
     return None
 
 
-def _take(state, action, phase: int, iteration: int, name) -> Step:
+def engage_phase_two(state, floating, threshold: float = AUTO_LAG1) -> bool:
+    """Whether Phase II runs after Phase I.
+
+    ``floating`` True or False decides; ``"auto"`` engages it when the Phase I
+    residual's lag-1 autocorrelation exceeds ``threshold`` (smooth residuals
+    such as MME's model-error estimate, the case the floating threshold was
+    designed for) and the fit is not exact.
+    """
+    if floating != "auto":
+        return bool(floating)
+    if not state.k or state.exact_fit():
+        return False
+    return lag1_autocorrelation(state.e) > threshold
+
+
+def _take(state, rule, action, phase: int, iteration: int, name) -> Step:
     kind, column, fval, thr = action
     if kind == "add":
         state.add(column)
         # Same value as the F of entry, but free of the cancellation in
         # SSE_old - reduction when the new term explains nearly all.
-        fval = float(state.in_model_f()[-1])
+        f_in = rule.in_model_f(state) if phase == 1 else state.in_model_f()[1:]
+        fval = float(f_in[-1])
     else:
         state.remove(column)
     column = int(column)
@@ -173,8 +214,8 @@ def _take(state, action, phase: int, iteration: int, name) -> Step:
 
 def select(
     state,
-    thresholds,
-    floating: bool,
+    rule,
+    floating,
     float_ratio: float,
     max_iter: int,
     name,
@@ -186,11 +227,10 @@ def select(
     ----------
     state : IncrementalQR
         Starts at the constant-only model; modified in place.
-    thresholds : callable
-        ``thresholds(k) -> (entry, removal)`` fixed thresholds for a model of
-        ``k`` functions.
-    floating : bool
-        Run Phase II after Phase I.
+    rule : ClassicRule or FamilywiseRule
+        Statistics and thresholds of Phase I (see :mod:`.rules`).
+    floating : bool or "auto"
+        Run Phase II after Phase I (see :func:`engage_phase_two`).
     float_ratio : float
         Phase II threshold = strongest partial F in the model / this.
     max_iter : int
@@ -209,18 +249,20 @@ def select(
     phase = 1
     guard = _CycleGuard()
     while True:
-        enter_thr, remove_thr = thresholds(state.k)
-        action = _next_action(state, phase, enter_thr, remove_thr, float_ratio)
+        action = _next_action(state, rule, phase, float_ratio)
         if action is None:
-            if phase == 1 and floating:
-                phase = 2
-                guard.record((2, frozenset(state.support)), state.overall_f())
-                continue
+            if phase == 1:
+                out.phase_one_lag1 = lag1_autocorrelation(state.e)
+                if engage_phase_two(state, floating):
+                    phase = 2
+                    out.phase_two = True
+                    guard.record((2, frozenset(state.support)), state.overall_f())
+                    continue
             break
         if len(out.steps) >= max_iter:
             out.converged = False
             break
-        out.steps.append(_take(state, action, phase, len(out.steps) + 1, name))
+        out.steps.append(_take(state, rule, action, phase, len(out.steps) + 1, name))
         if on_step is not None:
             on_step(state)
         key = (phase, frozenset(state.support))

@@ -3,9 +3,11 @@
 :class:`FloatingFStepwise` is a pysindy optimizer. For every target (every
 equation) it screens the library (:mod:`.screening`), selects library
 functions one at a time by partial F-ratios (:mod:`.selection`, Kolodziej &
-Mook, section III) over an incremental QR state (:mod:`.incremental_qr`), and
-describes the chosen model by a direct least-squares fit and its ANOVA table
-(:mod:`.anova`).
+Mook, section III) under an entry/removal rule (:mod:`.rules`: by default
+Newey-West robust F-ratios, :mod:`.robust`, at a Bonferroni level) over an
+incremental QR state (:mod:`.incremental_qr`), and describes the chosen
+model by a direct least-squares fit and its ANOVA table (:mod:`.final_fit`,
+:mod:`.anova`).
 
 The selection never refits the model per candidate: adding a function costs
 one pass over the library (``O(n_samples * n_candidates)``), removing one
@@ -22,7 +24,6 @@ any units select the same terms; coefficients are converted back at the end.
 
 from __future__ import annotations
 
-import numbers
 import warnings
 
 import numpy as np
@@ -30,60 +31,95 @@ from pysindy.optimizers import BaseOptimizer
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
-from ..core.validation import check_positive_number, check_probability
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
+from ._checks import check_data, check_params
 from ._numeric import pow2_scale
-from .anova import f_critical
 from .final_fit import final_fit
 from .incremental_qr import IncrementalQR
+from .rules import PAPER_F, PAPER_RATIO, ClassicRule, FamilywiseRule
 from .screening import Screen, screen_columns
-from .selection import select
+from .selection import engage_phase_two, select
 from .summary import build_summary
 
 __all__ = ["FloatingFStepwise"]
 
 
 class FloatingFStepwise(BaseOptimizer):
-    """Stepwise regression on partial F-ratios with a floating threshold.
+    """Stepwise regression on partial F-ratios, as a pysindy optimizer.
 
-    The modified stepwise regression (MSR) of Kolodziej & Mook as a pysindy
-    optimizer: ``ps.SINDy(optimizer=FloatingFStepwise())``. Each target
-    (equation) gets its own support. Phase I is Draper & Smith's stepwise
-    regression with fixed thresholds; Phase II (``floating=True``) raises the
-    threshold to the largest partial F-ratio in the model divided by
-    ``float_ratio`` and removes the functions below it, one at a time.
+    ``ps.SINDy(optimizer=FloatingFStepwise())``. Each target (equation) gets
+    its own support, chosen one function at a time by partial F-ratios
+    (Draper & Smith's stepwise regression, Kolodziej & Mook section III).
+
+    The default rule, in two sentences: a function enters (or stays) when its
+    Newey-West robust partial F-ratio, which does not count autocorrelated
+    residual samples as independent evidence, reaches the Bonferroni critical
+    value for the number of candidates outside the model at family-wise level
+    ``alpha``. Where the residual this leaves is smooth (lag-1
+    autocorrelation above 0.9, as with MME's estimate of the model error),
+    the selection is redone with the paper's rule (``F* = 10`` and its
+    floating Phase II), which was designed for that case.
+
+    :meth:`paper` gives the paper's rule for every target.
 
     Parameters
     ----------
-    f_enter : float, default 10.0
-        Partial F-ratio a candidate needs to enter (the paper's ``F*``).
+    f_enter : float, optional
+        A fixed threshold on the classic partial F-ratio (the paper's ``F*``;
+        the paper uses 10). Giving it selects the classic rule: no robust
+        F-ratios, no multiplicity correction. Use it to reproduce the paper
+        or a textbook stepwise regression.
     f_remove : float, optional
-        A function in the model whose partial F-ratio falls below this leaves.
-        Defaults to ``f_enter``; must not exceed it (the selection could cycle).
+        Removal threshold of the classic rule; defaults to ``f_enter`` and must
+        not exceed it (the selection could cycle). Requires ``f_enter``.
     alpha_enter, alpha_remove : float in (0, 1), optional
-        Significance levels. When ``alpha_enter`` is given they replace
-        ``f_enter``/``f_remove``: the thresholds become
-        ``scipy.stats.f.ppf(1 - alpha, 1, dof_E)`` at the current residual
-        degrees of freedom (as MATLAB's ``stepwisefit``): ``dof_E`` of the
-        enlarged model for entry, of the current model for removal.
-        ``alpha_remove`` defaults to ``max(alpha_enter, 0.10)`` (MATLAB's
-        default) and must be ``>= alpha_enter``.
-    floating : bool, default True
-        Run Phase II.
+        Per-test significance levels of the classic rule (MATLAB's
+        ``stepwisefit``): thresholds ``scipy.stats.f.ppf(1 - alpha, 1,
+        dof_E)`` at the current residual degrees of freedom (of the enlarged
+        model for entry, of the current model for removal). ``alpha_remove``
+        defaults to ``max(alpha_enter, 0.10)`` and must be ``>= alpha_enter``.
+        Exclusive with ``f_enter``.
+    floating : {"auto", True, False}, default "auto"
+        Phase II, the paper's floating threshold. ``"auto"`` uses it only for
+        targets whose Phase I residual has lag-1 autocorrelation above 0.9
+        (``phase_one_lag1_``, ``phase_two_``): under the default rule such a
+        target is selected again with the paper's rule; under ``f_enter`` or
+        ``alpha_enter`` Phase II continues from the Phase I model. True: always
+        (the paper); False: never. Phase II removes true functions whose
+        partial F-ratio is small next to the strongest one (Lorenz's ``-x2``
+        in ``x2'``, a light damping): it suits one dominant effect plus
+        corrections (MME's model error), not multi-scale dynamics.
     float_ratio : float, default 10.0
-        Phase II threshold = largest partial F-ratio in the model divided by
-        this (the paper: one order of magnitude). Must be ``>= 1``.
+        Phase II threshold = largest classic partial F-ratio in the model
+        divided by this (the paper: one order of magnitude). Must be ``>= 1``.
+    alpha : float in (0, 1), default 0.01
+        Family-wise level of the default rule (used when neither ``f_enter``
+        nor ``alpha_enter`` is given): in each step, the chance that any false
+        function enters is at most ``alpha``. Lower it for fewer false terms,
+        raise it (0.05) to keep weak terms at high noise; the Bonferroni
+        threshold grows only with the logarithm of the library size (about
+        F = 11 for 20 candidates, 16 for 500, 21 for 5,000).
+    autocorrelation : {"newey-west", None}, default "newey-west"
+        Statistic of the default rule. ``"newey-west"``: robust partial
+        F-ratios (Bartlett kernel, ``floor(4 (n / 100)**(2/9))`` lags; see
+        :mod:`pysindy_mme.optimizers.robust`), valid for autocorrelated and
+        heteroscedastic residuals, such as those of smoothed finite-difference
+        derivatives; rows must be in time order for it to see the
+        autocorrelation (in any other order it is still a valid
+        heteroscedasticity-robust test). None: classic partial F-ratios
+        (independent residuals of equal variance).
     max_iter : int, default 1000
         Maximum number of additions plus removals per target. Reaching it
         raises a ``ConvergenceWarning`` and sets ``converged_`` to False.
     drop_insignificant_constant : bool, default True
         The constant is always in the regression while functions are selected
-        and is never a candidate. At the end, if its partial F-ratio (its
-        ``t**2``) is below the removal threshold, the selected functions are
-        refit through the origin and the intercept reported as 0, so that
-        dynamics without a constant term print without a ``1`` term and
-        supports can be compared exactly. ``anova_`` still describes the fit
-        with intercept (the paper's Table II has an Intercept row).
+        and is never a candidate. At the end, if its partial F-ratio (robust
+        under the default rule, compared with the single-test level
+        ``alpha``; classic under the classic rule, compared with the removal
+        threshold) is too small, the selected functions are refit through the
+        origin and the intercept reported as 0, so that dynamics without a
+        constant print without a ``1`` term. ``anova_`` still describes the
+        fit with intercept (the paper's Table II has an Intercept row).
     tolerance : float, default 1e-8
         Collinearity tolerance: a candidate whose residual after projecting
         out the model is below ``tolerance`` times its centred norm cannot
@@ -115,11 +151,21 @@ class FloatingFStepwise(BaseOptimizer):
     history_ : list of ndarray
         ``coef_`` after each step (pysindy's meaning), starting from zeros.
     anova_ : list of :class:`~pysindy_mme.optimizers.AnovaTable`
-        Final ANOVA table of each target (with intercept).
+        Final ANOVA table of each target (with intercept). Under the default
+        rule it also holds the robust partial F-ratios, the Bonferroni-
+        adjusted p-values (``adjusted_p_values``), the residual's lag-1
+        autocorrelation and its effective number of observations.
     steps_ : list of list of :class:`Step`
-        The additions and removals of each target, in order.
+        The additions and removals of each target, in order, with the
+        statistic and threshold that decided each.
     n_iter_ : ndarray of int (n_targets,)
         Steps taken per target.
+    phase_two_ : ndarray of bool (n_targets,)
+        Whether Phase II ran for each target (under the default rule with
+        ``floating="auto"``: whether the paper's rule was applied).
+    phase_one_lag1_ : ndarray (n_targets,)
+        Lag-1 autocorrelation of the residual at the end of Phase I (what
+        ``floating="auto"`` decides on).
     converged_ : bool
         False if some target hit ``max_iter``.
     cycle_detected_ : bool
@@ -145,20 +191,23 @@ class FloatingFStepwise(BaseOptimizer):
 
     Notes
     -----
-    ``sample_weight`` are frequency weights: the number of observations in the
-    degrees of freedom is ``sum(sample_weight)``, so a fit with integer weights
-    equals a fit on rows repeated by their weights. Rows of weight 0 are
-    ignored.
+    Which rule to use. The default wins the drop-in benchmark
+    (``benchmarks/bench_dropin.py``: nine systems, three noise levels, 20
+    seeds, against pysindy's optimizers at their defaults and tuned by
+    cross-validation). Use :meth:`paper` to reproduce the paper, and
+    ``f_enter``/``alpha_enter`` for a textbook stepwise regression.
+
+    ``sample_weight`` are frequency weights for every sum of squares and the
+    coefficients: a fit with integer weights has the coefficients of a fit on
+    rows repeated by their weights, and under the classic rule the same
+    steps. The robust F-ratios treat a row of weight ``w`` as one observation
+    whose score is ``w`` times larger (repeated rows would be perfectly
+    correlated neighbours, no independent evidence), so multiplying all
+    weights by a constant changes nothing. Rows of weight 0 are ignored.
 
     The target must be finite: unlike pysindy's own optimizers, rows with NaN
     targets (e.g. the end points of ``FiniteDifference(drop_endpoints=True)``)
     are an error rather than silently dropped.
-
-    Phase II compares partial F-ratios with the strongest one, so a true term
-    whose contribution is small next to the others (Lorenz's ``-x2`` in
-    ``x2'``, a light damping) is removed with the default ``float_ratio=10``;
-    raise ``float_ratio`` or set ``floating=False`` for such multi-scale
-    dynamics (see ``tests/test_stepwise_vs_stlsq.py``).
 
     A target reproduced to rounding level (relative residual ``< 1e-12``,
     noise-free data) takes no further functions, Phase II does not rank the
@@ -184,12 +233,14 @@ class FloatingFStepwise(BaseOptimizer):
 
     def __init__(
         self,
-        f_enter=10.0,
+        f_enter=None,
         f_remove=None,
         alpha_enter=None,
         alpha_remove=None,
-        floating=True,
+        floating="auto",
         float_ratio=10.0,
+        alpha=0.01,
+        autocorrelation="newey-west",
         max_iter=1000,
         drop_insignificant_constant=True,
         tolerance=1e-8,
@@ -208,6 +259,8 @@ class FloatingFStepwise(BaseOptimizer):
         self.alpha_remove = alpha_remove
         self.floating = floating
         self.float_ratio = float_ratio
+        self.alpha = alpha
+        self.autocorrelation = autocorrelation
         self.max_iter = max_iter
         self.drop_insignificant_constant = drop_insignificant_constant
         self.tolerance = tolerance
@@ -217,137 +270,22 @@ class FloatingFStepwise(BaseOptimizer):
         self.initial_guess = initial_guess
         self.unbias = unbias
 
+    @classmethod
+    def paper(cls, **kwargs):
+        """The paper's modified stepwise regression (Kolodziej & Mook).
+
+        ``FloatingFStepwise(f_enter=10, floating=True, float_ratio=10)``:
+        classic partial F-ratios against ``F* = 10``, then Phase II always.
+        Other parameters (``max_report``, ...) may be given as keywords.
+        """
+        params = dict(f_enter=PAPER_F, floating=True, float_ratio=PAPER_RATIO)
+        params.update(kwargs)
+        return cls(**params)
+
     def set_params(self, **params):
         """Set parameters (scikit-learn API); returns ``self``."""
         super(BaseOptimizer, self).set_params(**params)
         return self
-
-    # ------------------------------------------------------------------ checks
-    def _validate_params(self) -> dict:
-        f_enter = check_positive_number(self.f_enter, "f_enter")
-        if self.f_remove is None:
-            f_remove = f_enter
-        else:
-            f_remove = check_positive_number(self.f_remove, "f_remove")
-            if f_remove > f_enter:
-                raise ValueError(
-                    f"f_remove ({f_remove}) must not exceed f_enter ({f_enter}): "
-                    "a function could enter and leave forever"
-                )
-        alpha_enter = alpha_remove = None
-        if self.alpha_enter is not None:
-            alpha_enter = check_probability(self.alpha_enter, "alpha_enter")
-            if self.alpha_remove is None:
-                alpha_remove = max(alpha_enter, 0.10)
-            else:
-                alpha_remove = check_probability(self.alpha_remove, "alpha_remove")
-                if alpha_remove < alpha_enter:
-                    raise ValueError(
-                        f"alpha_remove ({alpha_remove}) must be >= alpha_enter "
-                        f"({alpha_enter}): a function could enter and leave forever"
-                    )
-        elif self.alpha_remove is not None:
-            raise ValueError(
-                "alpha_remove requires alpha_enter (significance levels replace "
-                "f_enter/f_remove only when alpha_enter is given)"
-            )
-        for name in ("floating", "drop_insignificant_constant"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise TypeError(
-                    f"{name} must be True or False, got {getattr(self, name)!r}"
-                )
-        float_ratio = check_positive_number(
-            self.float_ratio, "float_ratio", minimum=1.0, strict=False
-        )
-        for name, minimum in (("max_iter", 1), ("max_report", 0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-                raise TypeError(f"{name} must be an integer, got {value!r}")
-            if value < minimum:
-                raise ValueError(f"{name} must be >= {minimum}, got {value}")
-        tolerance = check_positive_number(self.tolerance, "tolerance")
-        if tolerance >= 1:
-            raise ValueError(f"tolerance must be < 1, got {tolerance}")
-        return dict(
-            f_enter=f_enter,
-            f_remove=f_remove,
-            alpha_enter=alpha_enter,
-            alpha_remove=alpha_remove,
-            float_ratio=float_ratio,
-            tolerance=tolerance,
-        )
-
-    @staticmethod
-    def _validate_data(x, y, sample_weight):
-        try:
-            x = np.asarray(x, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"x must be a numeric array: {exc}") from None
-        if x.ndim != 2:
-            raise ValueError(
-                f"x must be 2-D (n_samples, n_features), got shape {x.shape}"
-            )
-        if x.shape[1] == 0:
-            raise ValueError("x has no columns (the library is empty)")
-        try:
-            y = np.array(y, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"y must be a numeric array: {exc}") from None
-        if y.ndim == 1:
-            y = y.reshape(-1, 1)
-        if y.ndim != 2:
-            raise ValueError(f"y must be 1-D or 2-D, got shape {y.shape}")
-        if y.shape[0] != x.shape[0]:
-            raise ValueError(
-                f"y has {y.shape[0]} rows but x has {x.shape[0]}: they must "
-                "have one row per sample"
-            )
-        bad = ~np.isfinite(y)
-        if np.any(bad):
-            row, col = np.argwhere(bad)[0]
-            kind = "NaN" if np.isnan(y[row, col]) else "inf"
-            raise ValueError(
-                f"y (the target) contains {kind} (first at row {row}, column "
-                f"{col}); remove those samples first (e.g. the NaN end points "
-                "of FiniteDifference(drop_endpoints=True))"
-            )
-        n = x.shape[0]
-        if sample_weight is None:
-            w = np.ones(n)
-        else:
-            try:
-                w = np.asarray(sample_weight, dtype=float)
-            except (TypeError, ValueError) as exc:
-                raise TypeError(f"sample_weight must be numeric: {exc}") from None
-            if w.ndim == 0:
-                w = np.full(n, float(w))
-            if w.ndim != 1 or w.shape[0] != n:
-                raise ValueError(
-                    f"sample_weight must have one entry per sample ({n}), got "
-                    f"shape {w.shape}"
-                )
-            if not np.all(np.isfinite(w)):
-                raise ValueError("sample_weight contains NaN or inf")
-            if np.any(w < 0):
-                raise ValueError(
-                    f"sample_weight must be non-negative, got {w.min()} "
-                    f"(at index {int(np.argmin(w))})"
-                )
-        n_eff = float(w.sum())
-        if n_eff < 2:
-            raise ValueError(
-                f"need at least 2 observations (sum of sample_weight), got {n_eff:g}"
-            )
-        return x, y, w
-
-    def _thresholds(self, k: int, n_eff: float, p: dict):
-        """(entry, removal) thresholds for a model with ``k`` functions."""
-        if p["alpha_enter"] is None:
-            return p["f_enter"], p["f_remove"]
-        return (
-            float(f_critical(p["alpha_enter"], n_eff - k - 2)),
-            float(f_critical(p["alpha_remove"], n_eff - k - 1)),
-        )
 
     # --------------------------------------------------------------------- fit
     def _reduce(self, x, y, **kwargs):
@@ -375,8 +313,8 @@ class FloatingFStepwise(BaseOptimizer):
         -------
         self
         """
-        params = self._validate_params()
-        x, y, w = self._validate_data(x_, y, sample_weight)
+        params = check_params(self)
+        x, y, w = check_data(x_, y, sample_weight)
         n_features = x.shape[1]
         for label, names, size, what in (
             ("feature_names", feature_names, n_features, "x has"),
@@ -402,6 +340,9 @@ class FloatingFStepwise(BaseOptimizer):
         if not np.all(keep):
             x, y, w = x[keep], y[keep], w[keep]
         screen = screen_columns(x, np.sqrt(w), float(w.sum()), params["tolerance"])
+        rule = self._rule(
+            params, int(screen.eligible.sum()), float(w.sum()), x.shape[0]
+        )
         self.excluded_ = screen.excluded
         self.constant_feature_ = screen.carrier
         if screen.excluded:
@@ -425,9 +366,11 @@ class FloatingFStepwise(BaseOptimizer):
         self.intercept_dropped_ = np.zeros(n_targets, dtype=bool)
         self.converged_ = True
         self.cycle_detected_ = False
+        self.phase_two_ = np.zeros(n_targets, dtype=bool)
+        self.phase_one_lag1_ = np.zeros(n_targets)
         for t in range(n_targets):
             coef[t], intercept[t] = self._fit_target(
-                x, y[:, t], w, screen, params, t, coef
+                x, y[:, t], w, screen, rule, t, coef
             )
             self.history_.append(coef.copy())
         self.coef_ = coef
@@ -439,7 +382,72 @@ class FloatingFStepwise(BaseOptimizer):
         names = getattr(self, "feature_names_", None)
         return str(names[j]) if names is not None else f"f{j}"
 
-    def _fit_target(self, x, y, w, screen: Screen, params, target: int, coef):
+    def _rule(self, params, n_candidates: int, n_eff: float, n_rows: int):
+        """The entry/removal rule these parameters select (see :mod:`.rules`)."""
+        if params["f_enter"] is None and params["alpha_enter"] is None:
+            return FamilywiseRule(
+                params["alpha"],
+                n_candidates,
+                n_eff,
+                n_rows,
+                robust=self.autocorrelation is not None,
+            )
+        return ClassicRule(
+            params["f_enter"],
+            params["f_remove"],
+            params["alpha_enter"],
+            params["alpha_remove"],
+            n_eff,
+        )
+
+    def _select(self, make_state, rule, coef, target: int):
+        """Phases I and II of one target: (state, Selection, history rows, rule).
+
+        Under the default rule with ``floating="auto"``, a Phase I residual
+        with lag-1 autocorrelation above ``AUTO_LAG1`` means the regime the
+        paper's rule was designed for (a smooth model-error estimate), where
+        Newey-West's few lags cannot capture the correlation: the selection is
+        then run again with the paper's rule (``F* = 10``, Phase II on).
+        """
+        history = []
+
+        def record(state):
+            current = coef.copy()
+            current[target] = state.coefficient_row()
+            history.append(current)
+
+        def run(state, rule, floating):
+            return select(
+                state,
+                rule,
+                floating,
+                float(self.float_ratio),
+                self.max_iter,
+                self._name,
+                on_step=record,
+            )
+
+        state = make_state()
+        if not (self.floating == "auto" and rule.robust):
+            return state, run(state, rule, self.floating), history, rule
+        result = run(state, rule, False)
+        if not engage_phase_two(state, "auto"):
+            return state, result, history, rule
+        lag1 = result.phase_one_lag1
+        history.clear()
+        state = make_state()
+        rule = self._smooth_rule(rule)
+        result = run(state, rule, True)
+        result.phase_one_lag1 = lag1
+        result.phase_two = True
+        return state, result, history, rule
+
+    @staticmethod
+    def _smooth_rule(rule):
+        """The paper's Phase I rule, for a strongly autocorrelated residual."""
+        return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
+
+    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef):
         """Select and fit one target; returns its coefficient row and intercept."""
         n_eff = float(w.sum())
         sw = np.sqrt(w)
@@ -447,24 +455,16 @@ class FloatingFStepwise(BaseOptimizer):
         # squares can then neither overflow nor underflow.
         y_scale = float(pow2_scale(np.max(np.abs(y), initial=0.0)))
         yt = y * y_scale
-        state = IncrementalQR(
-            x, sw, yt * sw, screen, n_eff, params["tolerance"], y_unit=1.0 / y_scale
-        )
 
-        def record(state):
-            current = coef.copy()
-            current[target] = state.coefficient_row()
-            self.history_.append(current)
+        def make_state():
+            return IncrementalQR(
+                x, sw, yt * sw, screen, n_eff, self.tolerance, y_unit=1.0 / y_scale
+            )
 
-        result = select(
-            state,
-            lambda k: self._thresholds(k, n_eff, params),
-            self.floating,
-            params["float_ratio"],
-            self.max_iter,
-            self._name,
-            on_step=record,
+        state, result, steps_history, rule = self._select(
+            make_state, rule, coef, target
         )
+        self.history_ += steps_history
         if result.cycle is not None:
             self.cycle_detected_ = True
             c = result.cycle
@@ -486,16 +486,17 @@ class FloatingFStepwise(BaseOptimizer):
             )
         self.steps_.append(result.steps)
         self.n_iter_[target] = len(result.steps)
-        _, remove_thr = self._thresholds(state.k, n_eff, params)
+        self.phase_two_[target] = result.phase_two
+        self.phase_one_lag1_[target] = result.phase_one_lag1
         row, icpt, table, dropped = final_fit(
             state,
             x,
             yt,
             w,
             screen,
-            tolerance=params["tolerance"],
+            tolerance=float(self.tolerance),
             max_report=self.max_report,
-            remove_threshold=remove_thr,
+            rule=rule,
             drop_constant=self.drop_insignificant_constant,
         )
         self.anova_.append(table)
@@ -519,24 +520,6 @@ class FloatingFStepwise(BaseOptimizer):
         return x[:, used] @ self.coef_[:, used].T + self.intercept_
 
     # ----------------------------------------------------------------- summary
-    def _rule_description(self) -> str:
-        """The selection rule in one line (the summary's first line)."""
-        if self.alpha_enter is None:
-            f_remove = self.f_enter if self.f_remove is None else self.f_remove
-            rule = f"F_enter = {self.f_enter:g}, F_remove = {f_remove:g}"
-        else:
-            a_rem = (
-                max(self.alpha_enter, 0.10)
-                if self.alpha_remove is None
-                else self.alpha_remove
-            )
-            rule = f"alpha_enter = {self.alpha_enter:g}, alpha_remove = {a_rem:g}"
-        if self.floating:
-            rule += f", Phase II floating ratio = {self.float_ratio:g}"
-        else:
-            rule += ", Phase II off"
-        return f"FloatingFStepwise: {rule}"
-
     def summary(self, feature_names=None, target_names=None, target=None):
         """ANOVA tables (the paper's Table II) and step histories.
 

@@ -9,9 +9,13 @@ from __future__ import annotations
 import html
 import numbers
 
+import numpy as np
+
+from .rules import PAPER_F
+from .selection import AUTO_LAG1
 from .tables import anova_html, anova_text, steps_html, steps_text
 
-__all__ = ["StepwiseSummary", "build_summary"]
+__all__ = ["StepwiseSummary", "build_summary", "rule_description"]
 
 
 def _plural(count: int, word: str) -> str:
@@ -63,6 +67,44 @@ class StepwiseSummary(str):
         return self._html
 
 
+def rule_description(opt) -> str:
+    """The selection rule of a fitted optimizer in one line (the summary's first)."""
+    if opt.f_enter is not None:
+        f_remove = opt.f_enter if opt.f_remove is None else opt.f_remove
+        rule = f"F_enter = {opt.f_enter:g}, F_remove = {f_remove:g}"
+    elif opt.alpha_enter is not None:
+        a_rem = (
+            max(opt.alpha_enter, 0.10) if opt.alpha_remove is None else opt.alpha_remove
+        )
+        rule = f"alpha_enter = {opt.alpha_enter:g}, alpha_remove = {a_rem:g}"
+    default_rule = opt.f_enter is None and opt.alpha_enter is None
+    if default_rule:
+        stat = "classic" if opt.autocorrelation is None else "Newey-West robust"
+        rule = (
+            f"family-wise alpha = {opt.alpha:g} (Bonferroni over the "
+            f"candidates outside the model), {stat} partial F"
+        )
+    engaged = ", ".join(str(t) for t in np.flatnonzero(opt.phase_two_))
+    if opt.floating == "auto" and default_rule and opt.autocorrelation:
+        rule += (
+            f"; where the Phase I residual's lag-1 autocorrelation is > "
+            f"{AUTO_LAG1:g} the paper's rule (F* = {PAPER_F:g}, Phase II "
+            f"floating ratio {opt.float_ratio:g}) is applied instead: "
+            f"target(s) {engaged or 'none'}"
+        )
+    elif opt.floating == "auto":
+        rule += (
+            f", Phase II auto (floating ratio {opt.float_ratio:g} when the "
+            f"Phase I residual's lag-1 autocorrelation > {AUTO_LAG1:g}; "
+            f"engaged on target(s): {engaged or 'none'})"
+        )
+    elif opt.floating:
+        rule += f", Phase II floating ratio = {opt.float_ratio:g}"
+    else:
+        rule += ", Phase II off"
+    return f"FloatingFStepwise: {rule}"
+
+
 def _labels(opt, feature_names, target_names, target):
     """(feature_names, target labels, targets to show), validated."""
     n_targets, n_features = opt.coef_.shape
@@ -96,11 +138,24 @@ def _labels(opt, feature_names, target_names, target):
 def _notes(opt, t) -> list:
     """Plain-text notes under a target's ANOVA table."""
     notes = []
-    if opt.intercept_dropped_[t]:
+    table = opt.anova_[t]
+    if opt.intercept_dropped_[t] and table.robust:
+        notes.append(
+            "  Note: the intercept's robust partial F "
+            f"({table.intercept_robust_partial_f:.4g}) is below the single-test "
+            f"threshold at alpha = {opt.alpha:g}; coef_ is refit through the origin."
+        )
+    elif opt.intercept_dropped_[t]:
         notes.append(
             "  Note: the intercept's partial F "
-            f"({opt.anova_[t].intercept_partial_f:.4g}) is below the removal "
+            f"({table.intercept_partial_f:.4g}) is below the removal "
             "threshold; coef_ is refit through the origin."
+        )
+    if table.robust:
+        notes.append(
+            "  Phase I compares robust partial F-ratios (Newey-West) with the "
+            "Bonferroni threshold; adj. p = p x candidates; Phase II "
+            "(if engaged) compares classic ones."
         )
     return notes
 
@@ -121,7 +176,7 @@ def build_summary(opt, feature_names=None, target_names=None, target=None):
     def name(j):
         return str(feature_names[j]) if feature_names is not None else f"f{j}"
 
-    rule = opt._rule_description()
+    rule = rule_description(opt)
     text = [rule]
     page = [f"<p><b>{html.escape(rule)}</b></p>"]
     if opt.excluded_:

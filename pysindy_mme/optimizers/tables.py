@@ -80,41 +80,53 @@ def _header_lines(table):
         lines.append(("Intercept", format_number(table.intercept)))
     else:
         lines.append(("Intercept", "none (through the origin)"))
+    if table.robust:
+        lines += [
+            ("Residual lag-1 autocorr.", format_number(table.lag1_autocorrelation)),
+            ("Effective observations", format_number(round(table.effective_n, 1))),
+            ("Newey-West lags", str(table.hac_lags)),
+            ("Candidates (Bonferroni)", str(table.n_candidates)),
+        ]
     return lines
 
 
 def _in_model_rows(table, name):
-    rows = [
-        (name(j), c, se, f, p)
-        for j, c, se, f, p in zip(
-            table.features,
-            table.coefficients,
-            table.std_errors,
-            table.partial_f,
-            table.p_values,
-            strict=True,
-        )
-    ]
+    """(name, coefficient, std error, partial F, p[, robust F, adjusted p]) rows."""
+    cols = [table.coefficients, table.std_errors, table.partial_f, table.p_values]
+    if table.robust:
+        cols += [table.robust_partial_f, table.adjusted_p_values]
+    rows = [(name(j),) + tuple(v) for j, *v in zip(table.features, *cols, strict=True)]
     if table.has_intercept:
-        rows.append(
-            (
-                "(intercept)",
-                table.intercept,
-                table.intercept_std_error,
-                table.intercept_partial_f,
-                table.intercept_p_value,
-            )
+        row = (
+            "(intercept)",
+            table.intercept,
+            table.intercept_std_error,
+            table.intercept_partial_f,
+            table.intercept_p_value,
         )
+        if table.robust:
+            # The constant is one prespecified test: no Bonferroni factor.
+            row += (table.intercept_robust_partial_f, None)
+        rows.append(row)
     return rows
 
 
 def _out_rows(table, name):
+    """(name, partial F, p[, robust F, adjusted p]) rows."""
+    cols = [table.out_partial_f, table.out_p_values]
+    if table.robust:
+        cols += [table.out_robust_partial_f, table.out_adjusted_p_values]
     return [
-        (name(j), f, p)
-        for j, f, p in zip(
-            table.out_features, table.out_partial_f, table.out_p_values, strict=True
-        )
+        (name(j),) + tuple(v) for j, *v in zip(table.out_features, *cols, strict=True)
     ]
+
+
+def _robust_header(table) -> str:
+    return f"{'robust F':>12}{'adj. p':>12}" if table.robust else ""
+
+
+def _cells(values, width=12) -> str:
+    return "".join(" " * width if v is None else _num(v, width) for v in values)
 
 
 def anova_text(table, feature_names=None, title=None) -> str:
@@ -134,17 +146,21 @@ def anova_text(table, feature_names=None, title=None) -> str:
         "",
         "  Functions in the model",
         f"  {'function':<20}{'coefficient':>14}{'std error':>12}"
-        f"{'partial F':>12}{'p-value':>12}",
+        f"{'partial F':>12}{'p-value':>12}{_robust_header(table)}",
     ]
-    for label, c, se, f, p in _in_model_rows(table, name):
-        lines.append(f"  {label:<20}{_num(c, 14)}{_num(se)}{_num(f)}{_num(p)}")
+    for label, c, *rest in _in_model_rows(table, name):
+        lines.append(f"  {label:<20}{_num(c, 14)}{_cells(rest)}".rstrip())
     if not table.features and not table.has_intercept:
         lines.append("  (none)")
     lines += ["", "  Functions not in the model (strongest)"]
     out = _out_rows(table, name)
     if out:
-        lines.append(f"  {'function':<20}{'partial F':>14}{'p-value':>12}")
-        lines += [f"  {label:<20}{_num(f, 14)}{_num(p)}" for label, f, p in out]
+        lines.append(
+            f"  {'function':<20}{'partial F':>14}{'p-value':>12}{_robust_header(table)}"
+        )
+        lines += [
+            f"  {label:<20}{_num(f, 14)}{_cells(rest)}" for label, f, *rest in out
+        ]
     else:
         lines.append("  (none assessed)")
     return "\n".join(lines)
@@ -181,18 +197,20 @@ def anova_html(table, feature_names=None, title=None) -> str:
             _anova_rows(table),
         )
     )
+    robust = ["robust F", "adj. p"] if table.robust else []
     parts.append(
         _html_table(
-            ["function", "coefficient", "std error", "partial F", "p-value"],
+            ["function", "coefficient", "std error", "partial F", "p-value"] + robust,
             _in_model_rows(table, name),
             caption="Functions in the model",
         )
     )
     out = _out_rows(table, name)
+    header = ["function", "partial F", "p-value"] + robust
     parts.append(
         _html_table(
-            ["function", "partial F", "p-value"],
-            out if out else [("(none assessed)", None, None)],
+            header,
+            out if out else [("(none assessed)",) + (None,) * (len(header) - 1)],
             caption="Functions not in the model (strongest)",
         )
     )

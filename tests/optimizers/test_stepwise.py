@@ -24,6 +24,7 @@ from pysindy_mme.optimizers import (
     StepwiseCycleWarning,
 )
 from pysindy_mme.optimizers import stepwise as stepwise_module
+from pysindy_mme.optimizers.rules import ClassicRule
 
 # The 13-row Hald cement table (public textbook data), vendored with the tests.
 HALD = Path(__file__).resolve().parents[1] / "data" / "hald_cement.csv"
@@ -205,7 +206,9 @@ def test_every_step_matches_brute_force_refits(seed):
     """
     X, y = _correlated_problem(seed)
     f_in, ratio = 4.0, 10.0
-    opt = FloatingFStepwise(f_enter=f_in, f_remove=f_in, float_ratio=ratio).fit(X, y)
+    opt = FloatingFStepwise(
+        f_enter=f_in, f_remove=f_in, floating=True, float_ratio=ratio
+    ).fit(X, y)
     model = []
     removals = 0
     for step in opt.steps_[0]:
@@ -251,21 +254,25 @@ def _weak_term_problem(seed=0, n=400):
 
 def test_phase_two_removes_weak_but_significant_term():
     X, y = _weak_term_problem()
-    phase1 = FloatingFStepwise(floating=False).fit(X, y)
+    phase1 = FloatingFStepwise.paper(floating=False).fit(X, y)
     assert set(np.flatnonzero(phase1.coef_[0])) == {0, 1}
     f_x1 = f_remove_brute(X, y, [0, 1], 1)
     f_x0 = f_remove_brute(X, y, [0, 1], 0)
     assert 10 < f_x1 < f_x0 / 10  # significant, yet weak by the floating rule
 
-    full = FloatingFStepwise().fit(X, y)
+    full = FloatingFStepwise.paper().fit(X, y)
     assert set(np.flatnonzero(full.coef_[0])) == {0}
     last = full.steps_[0][-1]
     assert (last.phase, last.action, last.feature) == (2, "remove", 1)
     assert last.partial_f == pytest.approx(f_x1, rel=1e-9)
     assert last.threshold == pytest.approx(f_x0 / 10, rel=1e-9)
     # A looser ratio keeps it.
-    loose = FloatingFStepwise(float_ratio=1e4).fit(X, y)
+    loose = FloatingFStepwise.paper(float_ratio=1e4).fit(X, y)
     assert set(np.flatnonzero(loose.coef_[0])) == {0, 1}
+    # The default keeps it too: white residuals do not engage Phase II.
+    default = FloatingFStepwise().fit(X, y)
+    assert set(np.flatnonzero(default.coef_[0])) == {0, 1}
+    assert not default.phase_two_[0] and abs(default.phase_one_lag1_[0]) < 0.2
 
 
 def test_phase_two_cycle_resolved_by_overall_f():
@@ -277,7 +284,7 @@ def test_phase_two_cycle_resolved_by_overall_f():
     X = rng.standard_normal((n, 5))
     y = X[:, 0] + 0.28 * X[:, 1] + 0.01 * rng.standard_normal(n)
     with pytest.warns(StepwiseCycleWarning, match="cycle"):
-        opt = FloatingFStepwise().fit(X, y)
+        opt = FloatingFStepwise.paper().fit(X, y)
     assert opt.cycle_detected_
     assert set(np.flatnonzero(opt.coef_[0])) == {0, 1}
     actions = [(s.phase, s.action, s.feature) for s in opt.steps_[0]]
@@ -290,10 +297,8 @@ def test_cycle_detection_with_inconsistent_thresholds(monkeypatch):
     # combination of parameters): x0 enters and leaves for ever without the
     # cycle check.
     X, y = _weak_term_problem()
-    monkeypatch.setattr(
-        FloatingFStepwise, "_thresholds", lambda self, k, n_eff, p: (10.0, 1e12)
-    )
-    opt = FloatingFStepwise(max_iter=10_000)
+    monkeypatch.setattr(ClassicRule, "thresholds", lambda self, k: (10.0, 1e12))
+    opt = FloatingFStepwise.paper(max_iter=10_000)
     with pytest.warns(StepwiseCycleWarning):
         opt.fit(X, y)
     assert opt.cycle_detected_

@@ -93,7 +93,15 @@ def test_multiple_trajectories(vdp):
     assert isinstance(pred, list) and len(pred) == 3
 
 
-def test_integer_weights_equal_repeated_rows():
+@pytest.mark.parametrize(
+    "make",
+    [FloatingFStepwise.paper, lambda: FloatingFStepwise(autocorrelation=None)],
+    ids=["paper", "default rule, classic F"],
+)
+def test_integer_weights_equal_repeated_rows(make):
+    # Frequency weights: exact under classic partial F-ratios. (The robust
+    # F-ratios of the default do not count repeated rows as independent
+    # evidence; see test_default_weights_are_scale_free.)
     rng = np.random.default_rng(0)
     n = 120
     X = rng.standard_normal((n, 8))
@@ -101,8 +109,8 @@ def test_integer_weights_equal_repeated_rows():
     Y = Y + 0.3 * rng.standard_normal((n, 2))
     w = rng.integers(0, 4, n)
     rows = np.repeat(np.arange(n), w)
-    weighted = FloatingFStepwise().fit(X, Y, sample_weight=w)
-    repeated = FloatingFStepwise().fit(X[rows], Y[rows])
+    weighted = make().fit(X, Y, sample_weight=w)
+    repeated = make().fit(X[rows], Y[rows])
     np.testing.assert_allclose(weighted.coef_, repeated.coef_, rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(weighted.intercept_, repeated.intercept_, rtol=1e-10)
     for a, b in zip(weighted.steps_, repeated.steps_, strict=True):
@@ -112,8 +120,8 @@ def test_integer_weights_equal_repeated_rows():
         )
     assert weighted.anova_[0].n == repeated.anova_[0].n == w.sum()
     # Weights that are all equal to 1 change nothing.
-    plain = FloatingFStepwise().fit(X, Y)
-    ones = FloatingFStepwise().fit(X, Y, sample_weight=np.ones(n))
+    plain = make().fit(X, Y)
+    ones = make().fit(X, Y, sample_weight=np.ones(n))
     np.testing.assert_array_equal(plain.coef_, ones.coef_)
 
 
@@ -122,7 +130,8 @@ def test_clone_params_pickle_round_trip(vdp):
     opt = FloatingFStepwise(f_enter=8.0, float_ratio=20.0, max_report=3)
     params = opt.get_params()
     assert params["f_enter"] == 8.0 and params["float_ratio"] == 20.0
-    assert params["f_remove"] is None and params["floating"] is True
+    # (floating's default became "auto" with issue 11's default rule)
+    assert params["f_remove"] is None and params["floating"] == "auto"
     assert opt.set_params(f_enter=9.0) is opt
     assert opt.f_enter == 9.0
     twin = clone(opt)

@@ -2,22 +2,24 @@
 
 Noisy full-state measurements of three systems, two noise levels each, 20
 seeds, pysindy's ``SmoothedFiniteDifference`` and ``PolynomialLibrary(degree=3)``,
-both optimizers with default settings. A fit counts when every equation has
-exactly the terms of the true right-hand side (the true support is read off
-the true model by an exact least-squares fit on random points, independent of
-either optimizer).
+STLSQ with default settings. A fit counts when every equation has exactly the
+terms of the true right-hand side (the true support is read off the true
+model by an exact least-squares fit on random points, independent of either
+optimizer).
 
 Findings these tests pin down (counts are printed; run with ``-s`` or ``-rA``):
 
-* Phase I alone (Draper & Smith's stepwise regression, ``floating=False``)
-  recovers the support at least as often as STLSQ in every case.
-* The default (Phase II with the paper's ``float_ratio=10``) matches or beats
-  STLSQ on the paper's Van der Pol example, but on Duffing and Lorenz it
-  removes one true term in every run: a term whose partial F-ratio, though
-  large (Lorenz ``-x2`` in ``x2'``: F ~ 1e3), is below a tenth of the
-  strongest term's (~3e5). Duffing's damping ``-0.1 x2`` likewise. Those
-  cases are strict xfails: they document the behaviour of the paper's rule
-  and fail loudly if it changes.
+* The default ``FloatingFStepwise()`` is never more than one seed behind
+  STLSQ (issue 11's criterion), and far ahead at the higher noise levels.
+* Phase I alone of the paper's rule (Draper & Smith's stepwise regression
+  with ``F* = 10``, ``FloatingFStepwise.paper(floating=False)``) also does.
+* The paper's rule (``FloatingFStepwise.paper()``: Phase II with
+  ``float_ratio=10``) matches or beats STLSQ on the paper's Van der Pol
+  example, but on Duffing and Lorenz it removes one true term in every run: a
+  term whose partial F-ratio, though large (Lorenz ``-x2`` in ``x2'``:
+  F ~ 1e3), is below a tenth of the strongest term's (~3e5). Duffing's
+  damping ``-0.1 x2`` likewise. (These were strict xfails while the paper's
+  rule was the default.)
 * No float_ratio serves both: the paper's own Table II needs one below 44.4,
   Lorenz's ``-x2`` one above ~200 (``test_no_float_ratio_serves_both_...``).
 """
@@ -38,11 +40,6 @@ pytestmark = pytest.mark.slow
 
 N_SEEDS = 20
 
-PHASE_TWO_LOSS = (
-    "Phase II with float_ratio=10 removes a true term whose partial F is below "
-    "1/10 of the strongest (Duffing's -0.1 x2, Lorenz's -x2 in x2')"
-)
-
 CASES = [
     ("van_der_pol", 0.1),
     ("van_der_pol", 0.01),
@@ -54,8 +51,9 @@ CASES = [
 
 OPTIMIZERS = {
     "STLSQ": ps.STLSQ,
-    "FloatingFStepwise": FloatingFStepwise,
-    "Phase I only": lambda: FloatingFStepwise(floating=False),
+    "default": FloatingFStepwise,
+    "paper": FloatingFStepwise.paper,
+    "Phase I only": lambda: FloatingFStepwise.paper(floating=False),
 }
 
 
@@ -96,33 +94,50 @@ def counts():
 
 
 def report(case, hits):
-    ours, theirs = hits["FloatingFStepwise"], hits["STLSQ"]
     print(
         f"\n{case[0]} noise var {case[1]:g} ({N_SEEDS} seeds): "
-        f"STLSQ {theirs}/{N_SEEDS}, FloatingFStepwise {ours}/{N_SEEDS} "
-        f"(difference {ours - theirs:+d}), Phase I only "
-        f"{hits['Phase I only']}/{N_SEEDS}"
+        + ", ".join(f"{label} {n}/{N_SEEDS}" for label, n in hits.items())
     )
 
 
-def _mark(case):
-    if case[0] in ("duffing", "lorenz"):
-        return pytest.param(
-            case, marks=pytest.mark.xfail(strict=True, reason=PHASE_TWO_LOSS)
-        )
-    return case
+VDP_CASES = [c for c in CASES if c[0] == "van_der_pol"]
+MULTISCALE_CASES = [c for c in CASES if c[0] in ("duffing", "lorenz")]
 
 
-@pytest.mark.parametrize(
-    "case", [_mark(c) for c in CASES], ids=lambda c: f"{c[0]}-{c[1]}"
-)
-def test_default_recovers_support_as_often_as_stlsq(counts, case):
+def _id(case):
+    return f"{case[0]}-{case[1]}"
+
+
+# Measured (default / STLSQ of 20): Van der Pol 0.1: 14 / 1, 0.01: 20 / 19;
+# Duffing 0.01: 4 / 5, 0.001: 20 / 7; Lorenz 0.1: 12 / 3, 0.01: 17 / 16.
+# Duffing at noise variance 0.01 (about 10% of the states' spread, beyond
+# the drop-in benchmark's 5%) is the one case the default trails: the light
+# damping -0.1 x2 has a robust partial F of 5-10, below the Bonferroni level.
+@pytest.mark.parametrize("case", CASES, ids=_id)
+def test_default_is_never_more_than_one_seed_behind_stlsq(counts, case):
     hits = counts[case]
     report(case, hits)
-    assert hits["FloatingFStepwise"] >= hits["STLSQ"]
+    assert hits["default"] >= hits["STLSQ"] - 1
 
 
-@pytest.mark.parametrize("case", CASES, ids=lambda c: f"{c[0]}-{c[1]}")
+@pytest.mark.parametrize("case", VDP_CASES, ids=_id)
+def test_paper_rule_recovers_van_der_pol_as_often_as_stlsq(counts, case):
+    hits = counts[case]
+    report(case, hits)
+    assert hits["paper"] >= hits["STLSQ"]
+
+
+@pytest.mark.parametrize("case", MULTISCALE_CASES, ids=_id)
+def test_paper_rule_removes_a_weak_true_term(counts, case):
+    """Phase II with float_ratio=10 removes a true term whose partial F is
+    below 1/10 of the strongest (Duffing's -0.1 x2, Lorenz's -x2 in x2')."""
+    hits = counts[case]
+    report(case, hits)
+    assert hits["paper"] < hits["STLSQ"]
+    assert hits["paper"] == 0  # in every seed
+
+
+@pytest.mark.parametrize("case", CASES, ids=_id)
 def test_phase_one_recovers_support_as_often_as_stlsq(counts, case):
     hits = counts[case]
     report(case, hits)
@@ -131,11 +146,12 @@ def test_phase_one_recovers_support_as_often_as_stlsq(counts, case):
 
 def test_paper_example_stlsq_reference_count(counts):
     # The brief's reference point: STLSQ finds Van der Pol's support in 19/20
-    # runs at noise variance 0.01; FloatingFStepwise in all of them.
+    # runs at noise variance 0.01; the paper's rule and the default in all.
     hits = counts[("van_der_pol", 0.01)]
     report(("van_der_pol", 0.01), hits)
     assert hits["STLSQ"] == 19
-    assert hits["FloatingFStepwise"] == N_SEEDS
+    assert hits["paper"] == N_SEEDS
+    assert hits["default"] == N_SEEDS
 
 
 # The paper's Table II (final model of its Van der Pol example): the strongest
