@@ -10,12 +10,14 @@ FloatingFStepwise())``). The modules, one job each:
 * :mod:`.rules`: which statistic meets which threshold (default and classic);
 * :mod:`.robust`: Newey-West partial F-ratios for autocorrelated residuals;
 * :mod:`.stepwise`: the estimator (parameters, validation, fit);
+* :mod:`.cv`: :class:`FloatingFStepwiseCV`, ``alpha`` by blocked cross-validation;
 * :mod:`.anova`: statistics (ANOVA table, F critical values, accurate lstsq);
 * :mod:`.tables`, :mod:`.summary`: text and HTML reports.
 """
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 from .anova import AnovaTable, f_critical, f_pvalue, fit_anova, lstsq_refined
+from .cv import FloatingFStepwiseCV
 from .selection import Step
 from .stepwise import FloatingFStepwise
 from .summary import StepwiseSummary
@@ -24,6 +26,7 @@ __all__ = [
     "AnovaTable",
     "ExcludedFeaturesWarning",
     "FloatingFStepwise",
+    "FloatingFStepwiseCV",
     "Step",
     "StepwiseCycleWarning",
     "StepwiseSummary",
