@@ -19,20 +19,14 @@ import numpy as np
 from pysindy.differentiation import BaseDifferentiation
 from sklearn.exceptions import ConvergenceWarning
 
-from ..core.integrate import HOLDS
 from ..core.model import as_model_function
-from ..core.noise import estimate_noise_variance
-from ..core.tables import sig
 from ..core.validation import (
-    as_float_array,
-    check_finite,
     check_indices,
-    check_positive_number,
     check_time,
 )
 from ..exceptions import DivergenceError
+from .mme_checks import MMEChecks
 from .noise import difference_noise_variance, noise_covariance
-from .observability import unobservable_states
 from .random_walk import RandomWalkModel, random_walk_problem
 from .transcription import MMESmoother
 from .weight import WSearch, channel_ratios, search_W
@@ -75,7 +69,7 @@ class MMEProblem:
     u: object
 
 
-class MME(BaseDifferentiation):
+class MME(MMEChecks, BaseDifferentiation):
     """Minimum model error estimator (a pysindy differentiation method).
 
     Model ``x' = f(x, u, t) + E d(t)`` where ``E`` holds the identity
@@ -339,120 +333,6 @@ class MME(BaseDifferentiation):
         self._store(smoother, search, R, n)
         return self
 
-    # ---------------------------------------------------------- validation
-    def _check_settings(self) -> int:
-        """Check the estimator's own parameters; returns ``n_states``."""
-        n = self.n_states
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-            raise TypeError(f"n_states must be a positive integer, got {n!r}")
-        if n < 1:
-            raise ValueError(f"n_states must be a positive integer, got {n}")
-        for name in ("max_iter", "n_substeps"):
-            val = getattr(self, name)
-            if isinstance(val, bool) or not isinstance(val, (int, np.integer)):
-                raise TypeError(f"{name} must be a positive integer, got {val!r}")
-            if val < 1:
-                raise ValueError(f"{name} must be a positive integer, got {val}")
-        check_positive_number(self.tol, "tol")
-        if self.error_model not in ("white", "random_walk"):
-            raise ValueError(
-                "error_model must be 'white' or 'random_walk', got "
-                f"{self.error_model!r}"
-            )
-        if self.target not in ("error", "derivative"):
-            raise ValueError(
-                f"target must be 'error' or 'derivative', got {self.target!r}"
-            )
-        if self.input_hold not in HOLDS:
-            raise ValueError(
-                "input_hold must be 'linear', 'zoh' or 'cubic', got "
-                f"{self.input_hold!r}"
-            )
-        return int(n)
-
-    @staticmethod
-    def _check_measurements(y):
-        y = as_float_array(y, "y (the measurements)", ndim=(1, 2), allow_nan=True)
-        if y.ndim == 1:
-            y = y[:, None]
-        N = y.shape[0]
-        if N < 3:
-            raise ValueError(f"y (the measurements) needs at least 3 samples, got {N}")
-        observed = np.sum(~np.isnan(y), axis=0)
-        if not observed.any():
-            raise ValueError(
-                "y (the measurements) has no observed value (all NaN); NaN marks "
-                "a missing measurement"
-            )
-        if observed.min() < 2:
-            j = int(np.argmin(observed))
-            raise ValueError(
-                f"y (the measurements) column {j} has {int(observed[j])} observed "
-                "value(s) (the rest are NaN); every measured channel needs at "
-                "least 2. Drop the channel (measured / measurement_matrix) or "
-                "give more data"
-            )
-        return y
-
-    def _measurement_model(self, n: int, m: int):
-        """``(measurement, jacobian)``: a matrix ``C`` or a callable ``g``."""
-        given = [
-            name
-            for name in ("measured", "measurement_matrix", "measurement_function")
-            if getattr(self, name) is not None
-        ]
-        if len(given) > 1:
-            raise ValueError(
-                f"give only one of measured, measurement_matrix and "
-                f"measurement_function; got {', '.join(given)}"
-            )
-        g_jac = None
-        if self.measurement_function is not None:
-            if not callable(self.measurement_function):
-                raise TypeError("measurement_function must be callable g(x)")
-            measurement = self.measurement_function
-            if self.measurement_jacobian is not None:
-                if not callable(self.measurement_jacobian):
-                    raise TypeError("measurement_jacobian must be callable")
-                g_jac = self.measurement_jacobian
-        elif self.measurement_matrix is not None:
-            C = as_float_array(self.measurement_matrix, "measurement_matrix", ndim=2)
-            if C.shape[1] != n:
-                raise ValueError(
-                    f"measurement_matrix must have n_states = {n} columns, got "
-                    f"shape {C.shape}"
-                )
-            measurement = C
-        else:
-            if self.measured is None:
-                idx = np.arange(n)
-            else:
-                idx = check_indices(self.measured, n, "measured")
-            measurement = np.eye(n)[idx]
-        if not callable(measurement) and measurement.shape[0] != m:
-            raise ValueError(
-                f"y (the measurements) has {m} column(s) but the measurement model "
-                f"gives {measurement.shape[0]} (measured / measurement_matrix)"
-            )
-        return measurement, g_jac
-
-    def _check_inputs(self, u, N, model):
-        u = self.u if u is None else u
-        if u is not None and not callable(u):
-            u = as_float_array(u, "u", ndim=(1, 2))
-            if u.ndim == 1:
-                u = u[:, None]
-            if u.shape[0] != N:
-                raise ValueError(
-                    f"u has {u.shape[0]} rows but y has {N} samples; give u on "
-                    "the sample grid"
-                )
-        if u is not None and not model.takes_input:
-            raise ValueError(
-                "u was given but assumed_model takes no input: define it as f(x, t, u)"
-            )
-        return u
-
     def check(self, y, t=1.0, u=None) -> MMEProblem:
         """Check the settings against the data and set up the solver.
 
@@ -530,118 +410,6 @@ class MME(BaseDifferentiation):
             t=t,
             u=u,
         )
-
-    @staticmethod
-    def _check_first_evaluation(smoother, model, measurement, es):
-        """Evaluate model and measurement once; check observability up front."""
-        x0, _ = smoother.initial_guess()
-        t = smoother.t
-        N, m = smoother.N, smoother.m
-        if callable(measurement):
-            try:
-                gx = np.asarray(measurement(x0), dtype=float)
-            except Exception as exc:
-                raise ValueError(
-                    f"measurement_function failed on x of shape {x0.shape}: {exc}"
-                ) from exc
-            if gx.shape != (N, m):
-                raise ValueError(
-                    f"measurement_function returned shape {gx.shape} for x of "
-                    f"shape {x0.shape}; expected {(N, m)} to match y"
-                )
-            check_finite(gx, "measurement_function output")
-        # First evaluation of the model: shape and finiteness.
-        ug = smoother.u_grid()
-        try:
-            model.check(x0, t, ug)
-        except ValueError:
-            raise
-        except Exception as exc:
-            raise ValueError(
-                f"assumed_model failed on its first evaluation (x of shape "
-                f"{x0.shape}): {type(exc).__name__}: {exc}"
-            ) from exc
-        if callable(measurement):
-            jac = smoother.measurement_jacobian(x0 / smoother.unit)
-            Hpat = np.abs(jac).max(axis=0) > 0
-        else:
-            Hpat = measurement != 0
-        hidden = unobservable_states(model, x0, t, ug, Hpat)
-        if hidden:
-            bad_err = [i for i in hidden if i in set(es.tolist())]
-            what = (
-                f"error_states {bad_err} cannot be seen in the measurements"
-                if bad_err
-                else f"states {hidden} cannot be seen in the measurements"
-            )
-            raise ValueError(
-                f"{what}: no measured quantity depends on them, directly or "
-                f"through the assumed model, so their initial value and model "
-                f"error are undetermined (states {hidden} are unobservable). "
-                "Measure them (measured / measurement_matrix) or change the model."
-            )
-
-    def _noise(self, y, t, m):
-        nv = self.noise_variance
-        if isinstance(nv, str):
-            if nv != "auto":
-                raise ValueError(
-                    f"noise_variance must be 'auto', a number, a vector or a "
-                    f"matrix; got {nv!r}"
-                )
-            var, diagnostics = estimate_noise_variance(
-                y, t, warn=False, return_diagnostics=True
-            )
-            if np.any(var <= 0):
-                raise ValueError(
-                    "noise_variance='auto' estimated a zero noise variance (the "
-                    "data look noise-free or quantised); give noise_variance"
-                )
-            doubts = "; ".join(
-                f"channel {d.channel}: {d.reason}"
-                for d in diagnostics
-                if not d.reliable
-            )
-            warnings.warn(
-                "noise_variance='auto': estimated the measurement noise variance "
-                f"as [{', '.join(sig(v) for v in var)}] (sd "
-                f"[{', '.join(sig(v) for v in np.sqrt(var))}]) from the noise floor "
-                "of the data's spectrum"
-                + (f"; not reliable - {doubts}" if doubts else "")
-                + ". Give noise_variance if it is known",
-                UserWarning,
-                stacklevel=4,
-            )
-            return np.diag(var)
-        return noise_covariance(nv, m)
-
-    def _W_spec(self, q):
-        W = self.W
-        if isinstance(W, str):
-            if W not in ("auto", "ml"):
-                raise ValueError(
-                    f"W must be 'auto', 'ml', a positive number or a positive "
-                    f"definite (q, q) matrix; got {W!r}"
-                )
-            return W
-        arr = as_float_array(W, "W", ndim=(0, 1, 2))
-        if arr.ndim == 0:
-            check_positive_number(float(arr), "W")
-            return float(arr) * np.eye(q)
-        if arr.ndim == 1:
-            if arr.size != q or np.any(arr <= 0):
-                raise ValueError(
-                    f"W as a vector must hold {q} positive weights (one per "
-                    f"error state), got {arr.tolist()}"
-                )
-            return np.diag(arr)
-        if arr.shape != (q, q):
-            raise ValueError(f"W must be ({q}, {q}) for {q} error states")
-        try:
-            np.linalg.cholesky(0.5 * (arr + arr.T))
-        except np.linalg.LinAlgError:
-            raise ValueError("W must be positive definite") from None
-        return 0.5 * (arr + arr.T)
 
     # ------------------------------------------------------------- solving
     def _solve(self, smoother, W, start):

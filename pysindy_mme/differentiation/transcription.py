@@ -62,15 +62,16 @@ in the record with Python loops over RK4 sub-steps only.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.integrate import InputSignal, rk4_flow
-from ..core.model import ModelFunction, rowwise_jacobian
 from ..exceptions import DivergenceError
+from .gauss_newton import GaussNewton
 from .kkt import CHUNK, BandedKKT, solve_reduced
 from .observability import unobservable_directions
+from .records import Linearization, SmootherResult
+from .units import Dynamics, internal_unit
 
 # A KKT pivot below this fraction of the largest one triggers the
 # observability check (see MMESmoother._kkt_step).
@@ -82,140 +83,7 @@ _MAX_GROWTH = 1e6
 __all__ = ["MMESmoother", "SmootherResult", "internal_unit"]
 
 
-def internal_unit(R) -> float:
-    """The solver's internal unit: a power of two near the noise's std. dev.
-
-    With ``R / s^2`` of order one the KKT pivots of the state rows
-    (``~ R^-1``) and of the multiplier rows (``~ h W^-1 ~ R`` at the
-    reference weight) are of order one together, whatever the data's units.
-    """
-    sd = float(np.sqrt(np.mean(np.diag(np.atleast_2d(R)))))
-    return float(np.ldexp(1.0, int(np.round(np.log2(sd)))))
-
-
-class _Dynamics:
-    """The model in internal units: ``f_s(z, theta) = f(s z, theta) / s``.
-
-    Wraps a :class:`ModelFunction` (no parameters) or a
-    :class:`~pysindy_mme.core.model.ParametricModel`. Finite-difference
-    Jacobians step in ``z``; a model with its own Jacobian keeps it
-    (``d f_s / dz = J(s z)``).
-    """
-
-    def __init__(self, model, unit: float):
-        self.model, self.unit = model, unit
-        self._last = (None, None)  # (z, s z): the same z gives the same array
-        self.n = model.n_states
-        self.p = int(getattr(model, "n_params", 0))
-        self.parametric = hasattr(model, "param_jacobian")
-        own = type(model).jacobian is not ModelFunction.jacobian
-        self._own_jacobian = isinstance(model, ModelFunction) and own
-
-    def _user(self, z):
-        """``s z``, the same array object for the same ``z`` (so the model can
-        reuse what it computed at that point)."""
-        if self._last[0] is not z:
-            self._last = (z, self.unit * z)
-        return self._last[1]
-
-    def __call__(self, z, t, u, theta):
-        s = self.unit
-        if self.parametric:
-            return self.model(self._user(z), t, u, theta) / s
-        return self.model(s * z, t, u) / s
-
-    def jacobian(self, z, t, u, theta):
-        if self._own_jacobian:
-            return self.model.jacobian(self.unit * z, t, u)
-        s = self.unit
-        if self.parametric and self.model.has_exact_correction_jacobian:
-            # finite differences of the assumed model only (steps in z); the
-            # correction's Jacobian is exact: d/dz [c(s z) / s] = c'(s z)
-            base = rowwise_jacobian(
-                lambda zz: self.model.base_part(s * zz, t, u, theta) / s, z
-            )
-            return base + self.model.correction_jacobian(self._user(z), u, theta)
-        return rowwise_jacobian(lambda zz: self(zz, t, u, theta), z)
-
-    def param_jacobian(self, z, t, u, theta):
-        if not self.p:
-            return np.zeros((z.shape[0], self.n, 0))
-        return self.model.param_jacobian(self._user(z), t, u, theta) / self.unit
-
-
-@dataclass
-class _Linearization:
-    """Everything the KKT system needs at one trajectory (independent of W)."""
-
-    x: np.ndarray  # (N, n)
-    d: np.ndarray  # (N-1, q)
-    theta: np.ndarray  # (p,)
-    A: np.ndarray  # (N-1, n, n)
-    G: np.ndarray  # (N-1, n, q)
-    B: np.ndarray  # (N-1, n, p)
-    defects: np.ndarray  # (N-1, n): Phi_k(x_k, d_k) - x_{k+1}
-    r: np.ndarray  # (N, m) residuals, 0 where y is missing
-    H: np.ndarray  # (N, m, n) or (m, n) for a linear measurement
-
-
-@dataclass
-class SmootherResult:
-    """Solution of the transcribed problem for one weight ``W``.
-
-    Attributes
-    ----------
-    W : ndarray (q, q)
-    x : ndarray (N, n)
-        State estimate at the sample times.
-    d : ndarray (N-1, q)
-        Model error, constant on each interval.
-    theta : ndarray (p,)
-        Global parameters (empty for plain MME).
-    lam : ndarray (N-1, n)
-        Multipliers of the dynamics constraints (of ``J / 2``).
-    residuals : ndarray (N, m)
-        ``y - g(x)``; NaN where ``y`` is missing.
-    cost : float
-        ``J`` at the solution.
-    measurement_cost, model_error_cost : float
-        Its two parts.
-    logdet : float
-        ``log|det K|`` of the last KKT matrix (see the module docstring).
-    neg2_log_likelihood : float
-        ``-2 log p(y | W)`` (restricted, Laplace approximation if nonlinear).
-    converged : bool
-    n_iter : int
-        Gauss-Newton iterations (KKT solves).
-    max_defect : float
-        Largest dynamics defect ``|Phi_k(x_k, d_k) - x_{k+1}|`` at the end.
-    message : str
-    rank_deficient : bool
-        Some combination of the parameters is not determined by the data.
-    nonfinite_trials : int
-        Line-search trial steps at which the model blew up (stepped back).
-    """
-
-    W: np.ndarray
-    x: np.ndarray
-    d: np.ndarray
-    lam: np.ndarray
-    residuals: np.ndarray
-    cost: float
-    measurement_cost: float
-    model_error_cost: float
-    logdet: float
-    neg2_log_likelihood: float
-    converged: bool
-    n_iter: int
-    max_defect: float
-    message: str
-    theta: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    rank_deficient: bool = False
-    nonfinite_trials: int = 0
-    _lin: _Linearization | None = field(default=None, repr=False)
-
-
-class MMESmoother:
+class MMESmoother(GaussNewton):
     """Direct transcription of MME / output error on one record (inputs checked).
 
     Parameters
@@ -308,7 +176,7 @@ class MMESmoother:
         # Internal units (see the module docstring): a linear measurement
         # y = C x is unit-free; g and f are wrapped.
         s = self.unit = internal_unit(self.R)
-        self._f = _Dynamics(model, s)
+        self._f = Dynamics(model, s)
         self.p = self._f.p
         self.theta_init = (
             np.zeros(self.p) if theta_init is None else np.asarray(theta_init, float)
@@ -506,7 +374,7 @@ class MMESmoother:
                 "increase n_substeps."
             )
 
-    def linearize(self, x, d, theta=None) -> _Linearization:
+    def linearize(self, x, d, theta=None) -> Linearization:
         """The KKT data at ``(x, d, theta)`` (internal units)."""
         theta = self.theta_init if theta is None else np.asarray(theta, float)
         phi, A, G, B = self.flow(x, d, theta, jacobian=True)
@@ -536,7 +404,7 @@ class MMESmoother:
             )
         r = self.residuals(x, theta)
         H = self.measurement_jacobian(x)
-        return _Linearization(
+        return Linearization(
             x=x, d=d, theta=theta, A=A, G=G, B=B, defects=phi - x[1:], r=r, H=H
         )
 
@@ -552,7 +420,7 @@ class MMESmoother:
         return float(np.einsum("k,ki,ij,kj->", self.h, d, W, d))
 
     # ------------------------------------------------------------------- KKT
-    def kkt_system(self, lin: _Linearization, W=None, Winv=None):
+    def kkt_system(self, lin: Linearization, W=None, Winv=None):
         """Factorise the KKT matrix at ``lin``; returns ``(fac, HR, GW, E, D)``.
 
         ``E``/``D`` border the band for the parameters (``p = 0``: empty).
@@ -583,7 +451,7 @@ class MMESmoother:
             D = np.einsum("ap,kaq->pq", self._M, RM)
         return fac, HR, GW, E, D
 
-    def _kkt_step(self, lin: _Linearization, W, Winv):
+    def _kkt_step(self, lin: Linearization, W, Winv):
         """One Gauss-Newton subproblem.
 
         Returns ``(dx, d_new, dtheta, lam, logdet, rank_deficient)``.
@@ -679,175 +547,6 @@ class MMESmoother:
             max_defect=nan,
             message="start",
             theta=np.asarray(theta, float),
-        )
-
-    def _solve(self, W, lin: _Linearization) -> SmootherResult:
-        """:meth:`solve` in internal units from the linearisation ``lin``."""
-        Winv = np.linalg.inv(W) if self.q else W
-        x, d, theta = lin.x, lin.d, lin.theta
-        meas = self.measurement_cost(lin.r)
-        mu = 0.0
-        converged, deficient = False, False
-        message = f"reached max_iter = {self.max_iter}"
-        lam = np.zeros((self.N - 1, self.n))
-        logdet = np.nan
-        n_iter = stall = nonfinite = 0
-        for n_iter in range(1, self.max_iter + 1):  # noqa: B007
-            try:
-                dx, d_new, dth, lam, logdet, deficient = self._kkt_step(lin, W, Winv)
-            except np.linalg.LinAlgError:
-                self._raise_singular(lin)
-            dd = d_new - d
-            if not (
-                np.isfinite(dx).all()
-                and np.isfinite(dd).all()
-                and np.isfinite(dth).all()
-            ):
-                raise DivergenceError(
-                    "the Gauss-Newton step is not finite; the linearised "
-                    "problem is too ill-conditioned (model exploding?)"
-                )
-            defect_l1 = float(np.abs(lin.defects).sum())
-            mu = max(mu, 2.0 * float(np.max(np.abs(lam), initial=0.0)) * 1.5)
-            cost0 = meas + self.model_error_cost(d, W)
-            phi0 = cost0 + mu * defect_l1
-            grad_dot_p = -2.0 * float(
-                np.einsum("kb,kb->", lin.r, self._apply_R_H(lin, dx, dth))
-            ) + 2.0 * float(np.einsum("k,ki,ij,kj->", self.h, d, W, dd))
-            slope = grad_dot_p - mu * defect_l1
-            if -slope <= self.tol * max(phi0, np.finfo(float).tiny):
-                # Stationary to within tol: take the (tiny) step and stop.
-                x, d, theta = x + dx, d_new, theta + dth
-                converged = True
-                message = "converged"
-                break
-            alpha, accepted = 1.0, False
-            for _ in range(40):
-                xt, dt_, tht = x + alpha * dx, d + alpha * dd, theta + alpha * dth
-                with np.errstate(all="ignore"):
-                    phi_t = self.flow(xt, dt_, tht, jacobian=False)
-                    meas_t = self.measurement_cost(self.residuals(xt, tht))
-                    merit = (
-                        meas_t
-                        + self.model_error_cost(dt_, W)
-                        + mu * float(np.abs(phi_t - xt[1:]).sum())
-                    )
-                if not np.isfinite(merit):
-                    nonfinite += 1  # this trial step made the model blow up
-                if np.isfinite(merit) and merit <= phi0 + 1e-4 * alpha * slope:
-                    accepted = True
-                    break
-                alpha *= 0.5
-            if not accepted:
-                message = "line search failed to decrease the merit function"
-                break
-            x, d, theta = xt, dt_, tht
-            # Damped steps that no longer lower the merit measurably (an
-            # inexact finite-difference Jacobian of the user's model limits
-            # how far Gauss-Newton can go): stationary for all purposes.
-            stall = stall + 1 if alpha < 1 and phi0 - merit <= self.tol * phi0 else 0
-            if stall >= 2:
-                converged = True
-                message = "converged (the merit function stopped decreasing)"
-                break
-            previous, lin = lin, self.linearize(x, d, theta)
-            meas = self.measurement_cost(lin.r)
-            if alpha == 1.0 and self._same_quadratic_model(previous, lin):
-                # The problem is linear-quadratic (a linear model and
-                # measurement): the full step solved it exactly, and the next
-                # subproblem would be the same one with a zero step.
-                converged = True
-                message = "converged (linear problem, exact step)"
-                break
-        res = self._result(
-            W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
-        )
-        res.nonfinite_trials = nonfinite
-        return res
-
-    def _result(
-        self, W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
-    ) -> SmootherResult:
-        """Package the solution (internal units) with its costs."""
-        with np.errstate(all="ignore"):
-            r = self.residuals(x, theta)
-            meas = self.measurement_cost(r)
-            phi = self.flow(x, d, theta, jacobian=False)
-        max_defect = float(np.max(np.abs(phi - x[1:]), initial=0.0))
-        if lin.x is not x:
-            # The last (sub-tolerance) step was taken without relinearising.
-            # Keep A, G, B, H from just before it (they change by O(step))
-            # with the exact defects and residuals at the returned point: a
-            # warm start from here is then consistent up to that O(step).
-            lin = dataclasses.replace(
-                lin, x=x, d=d, theta=theta, defects=phi - x[1:], r=r
-            )
-        if not (np.isfinite(x).all() and np.isfinite(theta).all()):
-            raise DivergenceError("the estimate diverged to non-finite values")
-        mec = self.model_error_cost(d, W)
-        cost = meas + mec
-        n2ll = (
-            cost + logdet + self._logdetR + (self.n_obs - self.n) * np.log(2.0 * np.pi)
-        )
-        return SmootherResult(
-            W=W,
-            x=x,
-            d=d,
-            lam=lam,
-            residuals=np.where(self.mask, r, np.nan),
-            cost=cost,
-            measurement_cost=meas,
-            model_error_cost=mec,
-            logdet=logdet,
-            neg2_log_likelihood=float(n2ll),
-            converged=converged,
-            n_iter=n_iter,
-            max_defect=max_defect,
-            message=message,
-            theta=theta,
-            rank_deficient=bool(deficient),
-            _lin=lin,
-        )
-
-    def _same_quadratic_model(self, old: _Linearization, new: _Linearization):
-        """Whether the linearisation did not change over a full step.
-
-        True for a linear model with a linear measurement: then the step was
-        the exact solution. Tolerances allow for the finite-difference
-        Jacobian's rounding (about 1e-10 relative).
-        """
-        if new.H.ndim != 2:
-            return False
-        tol = 1e-8
-
-        def same(a, b, floor):
-            scale = max(floor, float(np.max(np.abs(a), initial=0.0)))
-            return np.max(np.abs(b - a), initial=0.0) <= tol * scale
-
-        return bool(
-            same(old.A, new.A, 1.0)
-            and same(old.G, new.G, 1e-300)
-            and same(old.B, new.B, 1e-300)
-            and np.max(np.abs(new.defects), initial=0.0) <= tol * self.scale(new.x)
-        )
-
-    def _raise_singular(self, lin):
-        """The KKT system is singular: say what cannot be observed."""
-        directions = self._unobservable_directions(lin)
-        if directions is None:
-            detail = ": nothing is measured"
-        elif directions:
-            detail = (
-                "; the measurements do not see the initial-state direction(s) "
-                + "; ".join(f"[{p}]" for p in directions)
-                + " (state indices from 0)"
-            )
-        else:
-            detail = ""
-        raise np.linalg.LinAlgError(
-            "the estimation problem is singular: the states are not all "
-            "observable from the measurements, so the initial state (no "
-            "prior is used) or the model error is undetermined" + detail
         )
 
     def _unobservable_directions(self, lin, max_steps: int = 1000):

@@ -41,7 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .output_error import OutputErrorFit, OutputErrorModel, better_bic
+from .output_error import OutputErrorFit, OutputErrorModel
+from .statistics import better_bic, partial_f_p_value
 
 __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
 
@@ -86,19 +87,6 @@ class Confirmation:
     rejected: list = field(default_factory=list)
     correction_p_value: float = float("nan")
     log: list = field(default_factory=list)
-
-
-def partial_f_p_value(small: OutputErrorFit, big: OutputErrorFit, n_added=1) -> float:
-    """p-value of the partial F-test: ``big`` (``n_added`` more terms) vs ``small``."""
-    if not (np.isfinite(big.cost) and np.isfinite(small.cost)):
-        return 1.0
-    if big.cost <= 0:
-        return 0.0
-    # the residual variance of the bigger model; statistic and degrees of
-    # freedom corrected for correlated residuals (OutputErrorFit.inflation)
-    f_stat = ((small.cost - big.cost) / n_added) / big.residual_variance
-    f_stat /= big.inflation
-    return float(stats.f.sf(f_stat, n_added, big.dof)) if f_stat > 0 else 1.0
 
 
 class _Search:

@@ -331,6 +331,65 @@ def _check_size(library, y, n_vars):
         )
 
 
+def _check_options(alpha, min_effect, refit, input_hold, offsets, window):
+    """The study's own scalar options: ``(alpha, min_effect, window)``."""
+    alpha = val.check_probability(alpha, "alpha")
+    min_effect = val.check_positive_number(min_effect, "min_effect", strict=False)
+    if min_effect >= 1:
+        raise ValueError(f"min_effect must be a share in [0, 1), got {min_effect}")
+    for name, flag in (("refit", refit), ("offsets", offsets)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    if input_hold not in HOLDS:
+        raise ValueError(
+            f"input_hold must be 'linear', 'zoh' or 'cubic', got {input_hold!r}"
+        )
+    if (
+        isinstance(window, bool)
+        or not isinstance(window, (int, np.integer))
+        or window < 2
+    ):
+        raise ValueError(f"validation_window must be an integer >= 2, got {window!r}")
+    return alpha, min_effect, int(window)
+
+
+def _check_estimator(est, y) -> int:
+    """The estimator's settings that the study reads itself; ``n_states``."""
+    n_states = est.n_states
+    if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
+        raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
+    if n_states < 1:
+        raise ValueError(f"n_states must be a positive integer, got {n_states}")
+    if est.measured is not None:
+        idx = val.check_indices(est.measured, n_states, "measured")
+        if y.shape[1] != idx.size:
+            raise ValueError(
+                f"y has {y.shape[1]} columns but measured names {idx.size} states "
+                f"({idx.tolist()})"
+            )
+    if est.error_states is not None:
+        val.check_indices(est.error_states, n_states, "error_states")
+    if est.error_model not in ("white", "random_walk"):
+        raise ValueError(
+            f"error_model must be 'white' or 'random_walk', got {est.error_model!r}"
+        )
+    return int(n_states)
+
+
+def _channels(est, n_states, state_names, m):
+    """``(measured state per channel or None, channel names)``."""
+    if est.measured is None and (
+        est.measurement_matrix is not None or est.measurement_function is not None
+    ):
+        return None, [f"y{j}" for j in range(m)]
+    measured = val.check_indices(
+        est.measured if est.measured is not None else range(n_states),
+        n_states,
+        "measured",
+    )
+    return measured, [state_names[i] for i in measured]
+
+
 def check_study(
     y,
     t,
@@ -360,43 +419,17 @@ def check_study(
         raise ValueError("y contains no finite measurement")
     n_samples = y.shape[0]
     t = val.check_time(t, n_samples, "t")
-    alpha = val.check_probability(alpha, "alpha")
-    min_effect = val.check_positive_number(min_effect, "min_effect", strict=False)
-    if min_effect >= 1:
-        raise ValueError(f"min_effect must be a share in [0, 1), got {min_effect}")
-    if not isinstance(refit, (bool, np.bool_)):
-        raise TypeError(f"refit must be True or False, got {refit!r}")
-    if input_hold not in HOLDS:
-        raise ValueError(
-            f"input_hold must be 'linear', 'zoh' or 'cubic', got {input_hold!r}"
-        )
+    alpha, min_effect, window = _check_options(
+        alpha, min_effect, refit, input_hold, offsets, validation_window
+    )
     u = _inputs_array(u, n_samples)
     params = _parameters(parameters)
     if params and mme is not None:
         raise ValueError(
             "parameters need assumed_model=f(x, t, u, p) given to discover, not mme="
         )
-    if not isinstance(offsets, (bool, np.bool_)):
-        raise TypeError(f"offsets must be True or False, got {offsets!r}")
     est = _estimator(mme, mme_keywords, u, input_hold, params)
-    n_states = est.n_states
-    if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
-        raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
-    if n_states < 1:
-        raise ValueError(f"n_states must be a positive integer, got {n_states}")
-    if est.measured is not None:
-        idx = val.check_indices(est.measured, n_states, "measured")
-        if y.shape[1] != idx.size:
-            raise ValueError(
-                f"y has {y.shape[1]} columns but measured names {idx.size} states "
-                f"({idx.tolist()})"
-            )
-    if est.error_states is not None:
-        val.check_indices(est.error_states, n_states, "error_states")
-    if est.error_model not in ("white", "random_walk"):
-        raise ValueError(
-            f"error_model must be 'white' or 'random_walk', got {est.error_model!r}"
-        )
+    n_states = _check_estimator(est, y)
     u_est = est.u if u is None else u
     n_inputs = _count_inputs(u_est, t)
     default_measured = (
@@ -420,27 +453,10 @@ def check_study(
             f"assumed_equations has {len(assumed_equations)} entries, expected "
             f"{n_states} (one per state)"
         )
-    window = validation_window
-    if (
-        isinstance(window, bool)
-        or not isinstance(window, (int, np.integer))
-        or window < 2
-    ):
-        raise ValueError(f"validation_window must be an integer >= 2, got {window!r}")
     _check_size(library, y, n_states + n_inputs)
     problem = est.check(y, t, u_est)  # shapes, observability, first evaluation
     est.set_params(noise_variance=problem.noise_covariance)  # 'auto' resolved once
-    measured = None
-    channel_names = [f"y{j}" for j in range(y.shape[1])]
-    if est.measured is not None or (
-        est.measurement_matrix is None and est.measurement_function is None
-    ):
-        measured = val.check_indices(
-            est.measured if est.measured is not None else range(n_states),
-            n_states,
-            "measured",
-        )
-        channel_names = [state_names[i] for i in measured]
+    measured, channel_names = _channels(est, n_states, state_names, y.shape[1])
     u_grid = None if u_est is None else np.asarray(problem.smoother.u_grid(), float)
     return Study(
         y=problem.y,

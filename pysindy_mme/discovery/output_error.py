@@ -47,8 +47,9 @@ from ..core.model import ParametricModel
 from ..differentiation.kkt import equilibrated_inverse, solve_reduced, undetermined
 from ..differentiation.transcription import MMESmoother
 from ..exceptions import DivergenceError
+from .statistics import residual_inflation
 
-__all__ = ["OutputErrorFit", "OutputErrorModel", "better_bic", "residual_inflation"]
+__all__ = ["OutputErrorFit", "OutputErrorModel"]
 
 # Candidate sensitivities per solve: n_samples * n_states * group <= this.
 _SCORE_ELEMENTS = 1 << 22
@@ -200,36 +201,6 @@ class OutputErrorFit:
         inflation = self.inflation if inflation is None else inflation
         n_eff = max(self.n_residuals / inflation, 2.0)
         return self.cost / inflation + len(self.slots) * np.log(n_eff)
-
-
-def better_bic(a: OutputErrorFit, b: OutputErrorFit) -> bool:
-    """Whether ``a`` has the lower BIC than ``b``, both at the same inflation."""
-    c = min(a.inflation, b.inflation)
-    return a.bic(c) < b.bic(c)
-
-
-def residual_inflation(residuals, R) -> float:
-    """AR(1) variance inflation ``(1 + rho) / (1 - rho)`` of whitened residuals.
-
-    ``rho`` is the lag-1 autocorrelation pooled over channels and observed
-    pairs; 1 when ``rho`` is not significantly above 0 (``< 2 / sqrt(n)``).
-    """
-    r = np.asarray(residuals, dtype=float)
-    if r.ndim == 1:
-        r = r[:, None]
-    L = np.linalg.cholesky(np.linalg.inv(np.asarray(R, dtype=float))).T
-    w = np.where(np.isfinite(r), r, 0.0) @ L.T
-    pair = np.isfinite(r[1:]) & np.isfinite(r[:-1])
-    num = float(np.sum(np.where(pair, w[1:] * w[:-1], 0.0)))
-    den = float(np.sum(np.where(np.isfinite(r), w * w, 0.0)))
-    n = int(pair.sum())
-    if den <= 0 or n < 3:
-        return 1.0
-    rho = num / den
-    if rho <= 2.0 / np.sqrt(n):
-        return 1.0
-    rho = min(rho, 0.999)
-    return float((1.0 + rho) / (1.0 - rho))
 
 
 class OutputErrorModel:

@@ -15,9 +15,9 @@ from ..core.tables import sig
 from ..exceptions import DiscoveryWarning
 from .extended import ExtendedModel
 from .inputs import check_study
-from .output_error import residual_inflation
 from .propose import propose_terms
 from .result import Discovery, TermEstimate
+from .statistics import residual_inflation
 from .steps import (
     baseline,
     confirm_on_measurements,
@@ -30,7 +30,7 @@ from .steps import (
     step_size_check,
 )
 
-__all__ = ["discover"]
+__all__ = ["discover", "run_study"]
 
 
 def discover(
@@ -142,32 +142,12 @@ def discover(
     -------
     Discovery
     """
-    study = check_study(
-        y,
-        t,
-        mme=mme,
-        feature_library=feature_library,
-        optimizer=optimizer,
-        feature_names=feature_names,
-        u=u,
-        validation=validation,
-        alpha=alpha,
-        refit=refit,
-        assumed_equations=assumed_equations,
-        input_hold=input_hold,
-        validation_window=validation_window,
-        parameters=parameters,
-        offsets=offsets,
-        min_effect=min_effect,
-        assumed_model=assumed_model,
-        n_states=n_states,
-        measured=measured,
-        noise_variance=noise_variance,
-        error_states=error_states,
-        W=W,
-        error_model=error_model,
-    )
-    progress = Progress(verbose)
+    keywords = {k: v for k, v in locals().items() if k not in ("y", "t", "verbose")}
+    return run_study(check_study(y, t, **keywords), Progress(verbose))
+
+
+def run_study(study, progress: Progress) -> Discovery:
+    """The five steps on a checked :class:`~.inputs.Study`, in order."""
     progress.stage(f"checked: {study.t.size} samples, {study.n_states} states")
     assumed = fit_assumed_model(study)  # 1
     progress.stage(f"1. assumed model: chi2 = {assumed.chi2:.6g} on {assumed.dof} dof")
@@ -195,7 +175,7 @@ def discover(
     notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
     terms, estimates = _terms(study, proposals, confirmation)
     for note in notes:
-        warnings.warn(note, DiscoveryWarning, stacklevel=2)
+        warnings.warn(note, DiscoveryWarning, stacklevel=3)
     return Discovery(
         study=study,
         assumed=assumed,

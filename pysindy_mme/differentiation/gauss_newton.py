@@ -1,0 +1,192 @@
+"""Gauss-Newton with an l1-merit line search for the transcribed problem.
+
+The iteration of :class:`~.transcription.MMESmoother`: each step solves the
+KKT system of the linearised problem (``_kkt_step``), a line search on the
+exact l1 merit function (cost + penalty on the dynamics defects) globalises
+it, and the result is packaged with its costs. A mixin: it uses the
+solver's dynamics, costs and KKT system.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..exceptions import DivergenceError
+from .records import SmootherResult
+
+__all__ = ["GaussNewton"]
+
+
+class GaussNewton:
+    """The Gauss-Newton iteration of :class:`~.transcription.MMESmoother`."""
+
+    def _solve(self, W, lin):
+        """:meth:`solve` in internal units from the linearisation ``lin``."""
+        Winv = np.linalg.inv(W) if self.q else W
+        x, d, theta = lin.x, lin.d, lin.theta
+        meas = self.measurement_cost(lin.r)
+        mu = 0.0
+        converged, deficient = False, False
+        message = f"reached max_iter = {self.max_iter}"
+        lam = np.zeros((self.N - 1, self.n))
+        logdet = np.nan
+        n_iter = stall = nonfinite = 0
+        for n_iter in range(1, self.max_iter + 1):  # noqa: B007
+            try:
+                dx, d_new, dth, lam, logdet, deficient = self._kkt_step(lin, W, Winv)
+            except np.linalg.LinAlgError:
+                self._raise_singular(lin)
+            dd = d_new - d
+            if not (
+                np.isfinite(dx).all()
+                and np.isfinite(dd).all()
+                and np.isfinite(dth).all()
+            ):
+                raise DivergenceError(
+                    "the Gauss-Newton step is not finite; the linearised "
+                    "problem is too ill-conditioned (model exploding?)"
+                )
+            defect_l1 = float(np.abs(lin.defects).sum())
+            mu = max(mu, 2.0 * float(np.max(np.abs(lam), initial=0.0)) * 1.5)
+            cost0 = meas + self.model_error_cost(d, W)
+            phi0 = cost0 + mu * defect_l1
+            grad_dot_p = -2.0 * float(
+                np.einsum("kb,kb->", lin.r, self._apply_R_H(lin, dx, dth))
+            ) + 2.0 * float(np.einsum("k,ki,ij,kj->", self.h, d, W, dd))
+            slope = grad_dot_p - mu * defect_l1
+            if -slope <= self.tol * max(phi0, np.finfo(float).tiny):
+                # Stationary to within tol: take the (tiny) step and stop.
+                x, d, theta = x + dx, d_new, theta + dth
+                converged = True
+                message = "converged"
+                break
+            alpha, accepted = 1.0, False
+            for _ in range(40):
+                xt, dt_, tht = x + alpha * dx, d + alpha * dd, theta + alpha * dth
+                with np.errstate(all="ignore"):
+                    phi_t = self.flow(xt, dt_, tht, jacobian=False)
+                    meas_t = self.measurement_cost(self.residuals(xt, tht))
+                    merit = (
+                        meas_t
+                        + self.model_error_cost(dt_, W)
+                        + mu * float(np.abs(phi_t - xt[1:]).sum())
+                    )
+                if not np.isfinite(merit):
+                    nonfinite += 1  # this trial step made the model blow up
+                if np.isfinite(merit) and merit <= phi0 + 1e-4 * alpha * slope:
+                    accepted = True
+                    break
+                alpha *= 0.5
+            if not accepted:
+                message = "line search failed to decrease the merit function"
+                break
+            x, d, theta = xt, dt_, tht
+            # Damped steps that no longer lower the merit measurably (an
+            # inexact finite-difference Jacobian of the user's model limits
+            # how far Gauss-Newton can go): stationary for all purposes.
+            stall = stall + 1 if alpha < 1 and phi0 - merit <= self.tol * phi0 else 0
+            if stall >= 2:
+                converged = True
+                message = "converged (the merit function stopped decreasing)"
+                break
+            previous, lin = lin, self.linearize(x, d, theta)
+            meas = self.measurement_cost(lin.r)
+            if alpha == 1.0 and self._same_quadratic_model(previous, lin):
+                # The problem is linear-quadratic (a linear model and
+                # measurement): the full step solved it exactly, and the next
+                # subproblem would be the same one with a zero step.
+                converged = True
+                message = "converged (linear problem, exact step)"
+                break
+        res = self._result(
+            W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
+        )
+        res.nonfinite_trials = nonfinite
+        return res
+
+    def _result(
+        self, W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
+    ):
+        """Package the solution (internal units) with its costs."""
+        with np.errstate(all="ignore"):
+            r = self.residuals(x, theta)
+            meas = self.measurement_cost(r)
+            phi = self.flow(x, d, theta, jacobian=False)
+        max_defect = float(np.max(np.abs(phi - x[1:]), initial=0.0))
+        if lin.x is not x:
+            # The last (sub-tolerance) step was taken without relinearising.
+            # Keep A, G, B, H from just before it (they change by O(step))
+            # with the exact defects and residuals at the returned point: a
+            # warm start from here is then consistent up to that O(step).
+            lin = dataclasses.replace(
+                lin, x=x, d=d, theta=theta, defects=phi - x[1:], r=r
+            )
+        if not (np.isfinite(x).all() and np.isfinite(theta).all()):
+            raise DivergenceError("the estimate diverged to non-finite values")
+        mec = self.model_error_cost(d, W)
+        cost = meas + mec
+        n2ll = (
+            cost + logdet + self._logdetR + (self.n_obs - self.n) * np.log(2.0 * np.pi)
+        )
+        return SmootherResult(
+            W=W,
+            x=x,
+            d=d,
+            lam=lam,
+            residuals=np.where(self.mask, r, np.nan),
+            cost=cost,
+            measurement_cost=meas,
+            model_error_cost=mec,
+            logdet=logdet,
+            neg2_log_likelihood=float(n2ll),
+            converged=converged,
+            n_iter=n_iter,
+            max_defect=max_defect,
+            message=message,
+            theta=theta,
+            rank_deficient=bool(deficient),
+            _lin=lin,
+        )
+
+    def _same_quadratic_model(self, old, new):
+        """Whether the linearisation did not change over a full step.
+
+        True for a linear model with a linear measurement: then the step was
+        the exact solution. Tolerances allow for the finite-difference
+        Jacobian's rounding (about 1e-10 relative).
+        """
+        if new.H.ndim != 2:
+            return False
+        tol = 1e-8
+
+        def same(a, b, floor):
+            scale = max(floor, float(np.max(np.abs(a), initial=0.0)))
+            return np.max(np.abs(b - a), initial=0.0) <= tol * scale
+
+        return bool(
+            same(old.A, new.A, 1.0)
+            and same(old.G, new.G, 1e-300)
+            and same(old.B, new.B, 1e-300)
+            and np.max(np.abs(new.defects), initial=0.0) <= tol * self.scale(new.x)
+        )
+
+    def _raise_singular(self, lin):
+        """The KKT system is singular: say what cannot be observed."""
+        directions = self._unobservable_directions(lin)
+        if directions is None:
+            detail = ": nothing is measured"
+        elif directions:
+            detail = (
+                "; the measurements do not see the initial-state direction(s) "
+                + "; ".join(f"[{p}]" for p in directions)
+                + " (state indices from 0)"
+            )
+        else:
+            detail = ""
+        raise np.linalg.LinAlgError(
+            "the estimation problem is singular: the states are not all "
+            "observable from the measurements, so the initial state (no "
+            "prior is used) or the model error is undetermined" + detail
+        )
