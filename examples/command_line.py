@@ -1,4 +1,4 @@
-"""The command line on a CSV: a forced oscillator whose actuator is stronger than modelled.
+"""The command line on a CSV: a forced oscillator whose actuator is stronger.
 
 Run: ``python examples/command_line.py [--quick] [--out FOLDER]``
 (default FOLDER ``example_output/command_line``; ``--quick`` fits on fewer rows).

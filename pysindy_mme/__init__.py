@@ -17,7 +17,7 @@ from .exceptions import (
     ExcludedFeaturesWarning,
     StepwiseCycleWarning,
 )
-from .libraries import PowerLibrary
+from .feature_library import PowerLibrary
 from .stepwise import FloatingFStepwise
 
 __all__ = [

@@ -1,6 +1,6 @@
-"""Shared test configuration: the hypothesis profile and the case counts.
+"""Shared test configuration: hypothesis profile, case counts, tripwires.
 
-The property-based tests (``tests/test_properties.py``) run under a fixed
+The property-based tests (``tests/properties/``) run under a fixed
 hypothesis profile, ``"ci"``: derandomised (the same examples on every run and
 every machine, so CI is reproducible), no deadline (timings on a loaded
 2-core runner vary), no example database written to disk, and each test sets
@@ -11,6 +11,11 @@ run, same counts) when hunting for bugs locally.
 Every property test counts the inputs it generated per public entry point
 through the ``case_counter`` fixture; the counts are printed in the terminal
 summary, so they show in normal CI output.
+
+The ``no_long_computation`` fixture puts the tripwires of
+``bad_input_support.py`` in place for the bad-input tables
+(``tests/<package>/test_bad_input.py``; the command line's is
+``tests/cli/test_cli_slips.py``).
 """
 
 from __future__ import annotations
@@ -41,6 +46,14 @@ _CASES = pytest.StashKey[Counter]()
 
 def pytest_configure(config):
     config.stash[_CASES] = Counter()
+
+
+@pytest.fixture
+def no_long_computation(monkeypatch):
+    """Any solver reached raises ``LongComputationStarted``: checks come first."""
+    from bad_input_support import install_tripwires
+
+    install_tripwires(monkeypatch)
 
 
 @pytest.fixture(scope="session")

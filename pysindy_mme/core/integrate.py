@@ -38,13 +38,20 @@ __all__ = [
 HOLDS = ("linear", "zoh", "cubic")
 
 
-def _catmull_rom(u, frac):
-    """Cubic (Catmull-Rom) interpolation of samples ``u`` at ``t_k + frac h``
-    on every interval; the end intervals reuse their end samples."""
-    p0 = np.vstack([u[:1], u[:-2]])
-    p1, p2 = u[:-1], u[1:]
-    p3 = np.vstack([u[2:], u[-1:]])
-    s = frac
+def _catmull_rom(u, frac, k=None):
+    """Cubic (Catmull-Rom) interpolation of samples ``u`` at ``t_k + frac h_k``,
+    on every interval (``k=None``, one ``frac``) or on intervals ``k`` with a
+    ``frac`` each; the end intervals reuse their end samples."""
+    if k is None:
+        p0 = np.vstack([u[:1], u[:-2]])
+        p1, p2 = u[:-1], u[1:]
+        p3 = np.vstack([u[2:], u[-1:]])
+        s = frac
+    else:
+        last = u.shape[0] - 1
+        p0, p1 = u[np.maximum(k - 1, 0)], u[k]
+        p2, p3 = u[k + 1], u[np.minimum(k + 2, last)]
+        s = np.asarray(frac)[:, None]
     return 0.5 * (
         2 * p1
         + (p2 - p0) * s
@@ -61,9 +68,11 @@ class InputSignal:
     u : None, array-like (N,) or (N, m), or callable ``u(s) -> (len(s), m)``
     t : ndarray (N,)
         Sample times of the array ``u``.
-    hold : {"linear", "zoh"}
-        Between samples: linear interpolation, or zero-order hold (``u_k`` on
-        ``[t_k, t_{k+1})``). Ignored for a callable.
+    hold : {"linear", "zoh", "cubic"}
+        Between samples: linear interpolation, zero-order hold (``u_k`` on
+        ``[t_k, t_{k+1})``), or cubic (Catmull-Rom) interpolation through the
+        neighbouring samples, for inputs that were smooth signals sampled.
+        Ignored for a callable.
     """
 
     def __init__(self, u, t, hold: str = "linear"):
@@ -125,6 +134,15 @@ class InputSignal:
         if self.hold == "zoh":
             k = np.searchsorted(self.t, s, side="right") - 1
             return self.u[np.clip(k, 0, self.t.size - 1)]
+        if self.hold == "cubic" and self.t.size > 1:
+            # The same cubic on each interval as on_intervals (a model integrated
+            # at other times must see the input the fit saw); constant outside.
+            s = np.clip(s, self.t[0], self.t[-1])
+            k = np.clip(
+                np.searchsorted(self.t, s, side="right") - 1, 0, self.t.size - 2
+            )
+            frac = (s - self.t[k]) / (self.t[k + 1] - self.t[k])
+            return _catmull_rom(self.u, frac, k)
         return np.column_stack(
             [np.interp(s, self.t, self.u[:, j]) for j in range(self.u.shape[1])]
         )

@@ -12,7 +12,7 @@ import html
 
 import numpy as np
 
-__all__ = ["sig", "signed", "p_value", "text_table", "html_table"]
+__all__ = ["sig", "signed", "statistic", "p_value", "text_table", "html_table"]
 
 
 def sig(value, digits: int = 4) -> str:
@@ -32,6 +32,20 @@ def signed(value, digits: int = 4) -> str:
     """Like :func:`sig` with an explicit sign (``+0.5``, ``-3.2e-05``)."""
     text = sig(value, digits)
     return text if text in ("n/a", "0") or text.startswith("-") else "+" + text
+
+
+def statistic(value) -> str:
+    """A table entry of the paper's Table II style: whole numbers (degrees of
+    freedom, counts) as integers, others to five significant digits, exponent
+    form beyond ``1e6`` and below ``1e-3``; ``n/a`` if not finite."""
+    v = float(value)
+    if not np.isfinite(v):
+        return "n/a"
+    if v == int(v) and abs(v) < 1e7:
+        return str(int(v))
+    if v != 0 and (abs(v) >= 1e6 or abs(v) < 1e-3):
+        return f"{v:.4g}"
+    return f"{v:.5g}"
 
 
 def p_value(p) -> str:
@@ -59,8 +73,10 @@ def text_table(header, rows, indent: str = "  ") -> str:
     return "\n".join(lines)
 
 
-def html_table(header, rows, caption: str | None = None) -> str:
-    """An HTML table; numbers (not strings) right-aligned by :func:`sig`."""
+def html_table(header, rows, caption: str | None = None, number=None) -> str:
+    """An HTML table; numbers (not strings) right-aligned, formatted by
+    ``number`` (default: :func:`sig` to five digits); ``None`` cells empty."""
+    number = number or (lambda v: sig(v, 5))
     esc = html.escape
     out = ['<table class="simpletable">']
     if caption:
@@ -74,7 +90,7 @@ def html_table(header, rows, caption: str | None = None) -> str:
             elif isinstance(v, str):
                 cells.append(f"<td>{esc(v)}</td>")
             else:
-                cells.append(f'<td style="text-align:right">{sig(v, 5)}</td>')
+                cells.append(f'<td style="text-align:right">{number(v)}</td>')
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)

@@ -13,6 +13,7 @@ import numpy as np
 from ..core.progress import Progress
 from ..core.tables import sig
 from ..exceptions import DiscoveryWarning
+from .doubts import doubt_notes
 from .extended import ExtendedModel
 from .inputs import check_study
 from .propose import propose_terms
@@ -303,17 +304,11 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
     fit = confirmation.fit
     if fit is not None:
-        if not fit.converged:
-            notes.append(
-                "the output-error refit of the extended model did not converge "
-                f"({fit.message}); its coefficients may be inaccurate"
-            )
-        _ = fit.covariance  # computed now: it tells whether the fit is rank deficient
-        if fit.rank_deficient:
-            notes.append(
-                "some coefficients of the extended model are not determined by the "
-                "data (their standard errors are reported as n/a)"
-            )
+        names = list(study.parameter_names) + [
+            f"{proposals.name(c)} in {study.state_names[i]}'"
+            for i, c in confirmation.slots
+        ]
+        notes += doubt_notes(fit, names)
         from scipy import stats
 
         p_fit = float(stats.chi2.sf(fit.cost, fit.dof))

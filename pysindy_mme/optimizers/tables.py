@@ -2,8 +2,9 @@
 
 Formatting only: the numbers come from :class:`~.anova.AnovaTable` and
 :class:`~.selection.Step`. Text is laid out like the paper's Table II; HTML
-carries the same rows for notebooks. (To be merged into the package's one
-table formatter, ``pysindy_mme/core/tables.py``.)
+carries the same rows for notebooks. Numbers and HTML come from the
+package's one formatter, ``pysindy_mme/core/tables.py``; only the layout of
+these particular tables lives here.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import html
 
 import numpy as np
+
+from ..core.tables import html_table, statistic
 
 __all__ = [
     "anova_html",
@@ -22,15 +25,10 @@ __all__ = [
 
 
 def format_number(v) -> str:
-    """Four significant digits, switching to exponent form for extremes."""
+    """Table II style numbers (:func:`pysindy_mme.core.tables.statistic`);
+    a non-finite value is shown as itself (``inf``: an exact fit's F)."""
     v = float(v)
-    if not np.isfinite(v):
-        return str(v)
-    if v == int(v) and abs(v) < 1e7:
-        return str(int(v))
-    if v != 0 and (abs(v) >= 1e6 or abs(v) < 1e-3):
-        return f"{v:.4g}"
-    return f"{v:.5g}"
+    return str(v) if not np.isfinite(v) else statistic(v)
 
 
 def _namer(feature_names):
@@ -167,23 +165,7 @@ def anova_text(table, feature_names=None, title=None) -> str:
 
 
 def _html_table(header, rows, caption=None) -> str:
-    esc = html.escape
-    out = ['<table class="simpletable">']
-    if caption:
-        out.append(f"<caption>{esc(caption)}</caption>")
-    out.append("<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
-    for row in rows:
-        cells = []
-        for v in row:
-            if v is None:
-                cells.append("<td></td>")
-            elif isinstance(v, str):
-                cells.append(f"<td>{esc(v)}</td>")
-            else:
-                cells.append(f'<td style="text-align:right">{format_number(v)}</td>')
-        out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</table>")
-    return "\n".join(out)
+    return html_table(header, rows, caption, number=format_number)
 
 
 def anova_html(table, feature_names=None, title=None) -> str:

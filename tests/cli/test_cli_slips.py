@@ -1,8 +1,14 @@
-"""A table of command-line slips: each must print a message that names the
-option (or file and line) and what to do.
+"""The command line's bad-input table: slips, each of which must print a
+message that names the option (or file and line) and what to do.
 
 Errors end with exit code 2, one line ``pysindy-mme: error: ...`` and no
-output folder. Warnings are printed as ``pysindy-mme: warning: ...`` lines.
+output folder. Every slip runs with the tripwires of ``bad_input_support.py``
+in place (the checks come before any solver), except the few marked
+``in_solver``, which fail inside MME's first integration on purpose.
+``tests/test_bad_input_coverage.py`` checks this table under its own names
+(``SLIPS``, ``test_command_line_slip_is_named``).
+
+Warnings are printed as ``pysindy-mme: warning: ...`` lines.
 """
 
 import contextlib
@@ -15,6 +21,8 @@ import pytest
 from cli_support import MODEL_FILE, base_args, run, write_user_files
 
 from pysindy_mme.cli import main
+
+ENTRY_POINT = "command line"
 
 
 def _line_of(text, needle):
@@ -30,10 +38,19 @@ class Slip:
     csv_text: str | None = None
     files: dict = field(default_factory=dict)  # extra files written to tmp
     data_file: str | None = None  # replaces data.csv in the command
+    in_solver: bool = False  # fails inside a solver on purpose: no tripwires
 
 
 BROKEN_AT_IMPORT = "import numpy as np\nraise RuntimeError('broken on import')\n"
 SYNTAX_ERROR = "import numpy as np\n\ndef f(x, t)\n    return x\n"
+WRONG_SHAPE = "def f(x, t):\n    return x[:, :1]\n"
+EXPLODES = """import numpy as np
+
+
+def f(x, t):
+    return np.column_stack([x[:, 1] + 1e8 * x[:, 0] ** 2, np.zeros(len(x))])
+"""
+HEADER = "time,position\n"
 
 SLIPS = [
     Slip(
@@ -186,11 +203,68 @@ SLIPS = [
         ("--input-hold must be one of linear, zoh",),
     ),
     Slip("states repeated", {"states": "position,position"}, ("--states repeats",)),
+    Slip(
+        "model file does not exist",
+        {"model": "{tmp}/missing.py:f"},
+        ("--model: file {tmp}/missing.py does not exist",),
+    ),
+    Slip(
+        "model name is not a function",
+        {"model": "{tmp}/model.py:NOT_A_FUNCTION"},
+        ("--model: 'NOT_A_FUNCTION' in {tmp}/model.py is not callable",),
+    ),
+    Slip(
+        "model returns the wrong shape",
+        {"model": "{tmp}/wrong_shape.py:f"},
+        ("assumed_model returned an array of shape", "(option --model)"),
+        files={"wrong_shape.py": WRONG_SHAPE},
+    ),
+    Slip(
+        "ragged CSV row",
+        csv_text=HEADER + "0,1.0\n0.1,2.0,3.0\n",
+        phrases=("data.csv: line 3 has 3 fields but the header has 2",),
+    ),
+    Slip(
+        "CSV with a header only",
+        csv_text=HEADER,
+        phrases=("{tmp}/data.csv: needs a header row and at least one data row",),
+    ),
+    Slip(
+        "missing time value",
+        csv_text=HEADER + "0,1.0\n,2.0\n0.2,1.5\n",
+        phrases=("--time: column 'time' has missing values",),
+    ),
+    Slip(
+        "record shorter than the library",
+        csv_text=HEADER + "".join(f"{0.1 * k},{np.cos(0.1 * k)}\n" for k in range(6)),
+        phrases=("at least 12 samples are needed",),
+    ),
+    Slip(
+        "model that blows up",
+        {"model": "{tmp}/explodes.py:f"},
+        ("blows up within one sample interval", "--model"),
+        files={"explodes.py": EXPLODES},
+        in_solver=True,
+    ),
 ]
 
 
-@pytest.mark.parametrize("slip", SLIPS, ids=[s.id for s in SLIPS])
-def test_command_line_slip_is_named(tmp_path, slip):
+def _params(slips):
+    return [pytest.param(slip, id=slip.id) for slip in slips]
+
+
+@pytest.mark.parametrize("slip", _params(s for s in SLIPS if not s.in_solver))
+def test_command_line_slip_is_named(tmp_path, slip, no_long_computation):
+    assert_slip_is_named(tmp_path, slip)
+
+
+@pytest.mark.parametrize("slip", _params(s for s in SLIPS if s.in_solver))
+def test_slip_found_inside_a_solver_is_named(tmp_path, slip):
+    assert_slip_is_named(tmp_path, slip)
+
+
+def assert_slip_is_named(tmp_path, slip):
+    """Exit code 2, one error line with the slip's phrases, nothing written."""
     csv, model, _ = write_user_files(tmp_path)
     if slip.csv_text is not None:
         csv.write_text(slip.csv_text)
@@ -208,15 +282,21 @@ def test_command_line_slip_is_named(tmp_path, slip):
     lines = result.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("pysindy-mme: error: "), lines
     for phrase in slip.phrases:
+        phrase = phrase.replace("{tmp}", str(tmp_path))
         assert phrase in lines[0], (phrase, lines[0])
     # it names what to fix: an option, or the file (and line) of the user's input
-    assert re.search(r"--[a-z]|\.py:\d+:|data file|: line \d+", lines[0]), lines[0]
+    assert re.search(r"--[a-z]|\.py:\d+:|data file|: line \d+", lines[0]) or (
+        f"{csv}: " in lines[0]
+    ), lines[0]
     assert "Traceback" not in result.err
     assert not out.exists(), "bad input must not write anything"
 
 
 def test_the_table_covers_at_least_twelve_slips():
     assert len(SLIPS) >= 12
+    assert len({slip.id for slip in SLIPS}) == len(SLIPS), "slip ids must be unique"
+    # all but a few run under the tripwires
+    assert sum(not slip.in_solver for slip in SLIPS) >= 12
 
 
 # ------------------------------------------------------------------ warnings

@@ -4,7 +4,9 @@
   every partial F-ratio recomputed here by brute-force least squares;
 * closed-form ANOVA quantities computed directly in the test;
 * exact rational arithmetic (``fractions``) for an ill-conditioned problem;
-* constructed problems for Phase II, cycles, set-aside columns and bad input.
+* constructed problems for Phase II, cycles and set-aside columns.
+
+Bad input has its table in ``test_bad_input.py``.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ from pysindy_mme.optimizers import (
     FloatingFStepwise,
     StepwiseCycleWarning,
 )
-from pysindy_mme.optimizers import stepwise as stepwise_module
 from pysindy_mme.optimizers.rules import ClassicRule
 
 # The 13-row Hald cement table (public textbook data), vendored with the tests.
@@ -493,104 +494,3 @@ def test_targets_have_independent_supports():
     assert len(opt.history_) == 1 + sum(len(s) for s in opt.steps_) + 3
     np.testing.assert_array_equal(opt.history_[-1], opt.coef_)
     assert not np.any(opt.history_[0])
-
-
-# -------------------------------------------------------------------- bad input
-def _data():
-    rng = np.random.default_rng(12)
-    X = rng.standard_normal((20, 3))
-    return X, X[:, 0] + 0.1 * rng.standard_normal(20)
-
-
-@pytest.mark.parametrize(
-    "params, match",
-    [
-        (dict(f_enter=0), "f_enter must be finite and > 0"),
-        (dict(f_enter=-4), "f_enter must be finite and > 0"),
-        (dict(f_enter=np.nan), "f_enter must be finite"),
-        (dict(f_enter=np.inf), "f_enter must be finite"),
-        (dict(f_remove=0), "f_remove must be finite and > 0"),
-        (dict(f_enter=4, f_remove=5), r"f_remove \(5.0\) must not exceed f_enter"),
-        (dict(float_ratio=0.5), "float_ratio must be finite and >= 1"),
-        (dict(alpha_enter=0.0), "alpha_enter must be finite and > 0"),
-        (dict(alpha_enter=1.0), "alpha_enter must lie strictly between 0 and 1"),
-        (
-            dict(alpha_enter=0.1, alpha_remove=0.05),
-            "alpha_remove .* must be >= alpha_enter",
-        ),
-        (dict(alpha_remove=0.1), "alpha_remove requires alpha_enter"),
-        (dict(alpha_enter=0.05, alpha_remove=1.5), "alpha_remove must lie strictly"),
-        (dict(max_iter=0), "max_iter must be >= 1"),
-        (dict(max_report=-1), "max_report must be >= 0"),
-        (dict(tolerance=0.0), "tolerance must be finite and > 0"),
-        (dict(tolerance=2.0), "tolerance must be < 1"),
-    ],
-)
-def test_bad_parameters_raise_before_work(params, match, monkeypatch):
-    def no_work(*args, **kwargs):  # pragma: no cover - must not be reached
-        raise AssertionError("validation must happen before any work")
-
-    monkeypatch.setattr(stepwise_module, "screen_columns", no_work)
-    X, y = _data()
-    opt = FloatingFStepwise(**params)  # __init__ only stores
-    with pytest.raises(ValueError, match=match):
-        opt.fit(X, y)
-
-
-@pytest.mark.parametrize(
-    "params, match",
-    [
-        (dict(max_iter=2.5), "max_iter must be an integer"),
-        (dict(floating="yes"), "floating must be True or False"),
-        (dict(f_enter="10"), "f_enter must be a real number"),
-    ],
-)
-def test_bad_parameter_types(params, match):
-    X, y = _data()
-    with pytest.raises(TypeError, match=match):
-        FloatingFStepwise(**params).fit(X, y)
-
-
-def _with(arr, index, value):
-    out = np.array(arr, dtype=float)
-    out[index] = value
-    return out
-
-
-@pytest.mark.parametrize(
-    "make, match",
-    [
-        (lambda X, y: (X, _with(y, 3, np.nan), None), r"y \(the target\) contains NaN"),
-        (lambda X, y: (X, _with(y, 0, np.inf), None), r"y \(the target\) contains inf"),
-        (lambda X, y: (X, y[:-1], None), "y has 19 rows but x has 20"),
-        (lambda X, y: (X[:, 0], y, None), "x must be 2-D"),
-        (
-            lambda X, y: (X, y, np.ones(19)),
-            "sample_weight must have one entry per sample",
-        ),
-        (
-            lambda X, y: (X, y, _with(np.ones(20), 4, -1.0)),
-            "sample_weight must be non-negative",
-        ),
-        (
-            lambda X, y: (X, y, _with(np.ones(20), 4, np.nan)),
-            "sample_weight contains NaN",
-        ),
-        (lambda X, y: (X, y, np.zeros(20)), "need at least 2 observations"),
-    ],
-)
-def test_bad_data_raise_value_error(make, match, monkeypatch):
-    def no_work(*args, **kwargs):  # pragma: no cover
-        raise AssertionError("validation must happen before any work")
-
-    monkeypatch.setattr(stepwise_module, "screen_columns", no_work)
-    X, y = _data()
-    x_bad, y_bad, sw = make(X, y)
-    with pytest.raises(ValueError, match=match):
-        FloatingFStepwise().fit(x_bad, y_bad, sample_weight=sw)
-
-
-def test_feature_names_length_checked():
-    X, y = _data()
-    with pytest.raises(ValueError, match="feature_names has 2 names but x has 3"):
-        FloatingFStepwise().fit(X, y, feature_names=["a", "b"])

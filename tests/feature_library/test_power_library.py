@@ -1,4 +1,8 @@
-"""Tests for PowerLibrary (the paper's Table I function library)."""
+"""PowerLibrary (the paper's Table I function library): counts, names, values
+against direct numpy evaluation, non-finite values, pysindy use, scikit-learn
+conventions. Bad input: ``test_bad_input.py``; generated inputs:
+``tests/properties/test_power_library_properties.py``.
+"""
 
 import io
 import pickle
@@ -10,7 +14,11 @@ from math import comb
 import numpy as np
 import pysindy as ps
 import pytest
-from scipy import sparse
+from reliability_support import (
+    assert_same_global_random_state,
+    global_random_state,
+    readonly,
+)
 from sklearn.base import clone
 
 from pysindy_mme import PowerLibrary, systems
@@ -245,9 +253,6 @@ def test_default_names_follow_pysindy():
         assert name in names
     assert "x0 |x1|" in names and "x1 |x1|" in names
     assert _default_names(2, ["x1", "x2"]).count("x2 |x2|") == 1
-    lib = PowerLibrary().fit(np.ones((2, 2)))
-    with pytest.raises(ValueError, match="input_features"):
-        lib.get_feature_names(["only_one"])
 
 
 def test_hidden_drag_term_of_systems_module_is_a_library_column():
@@ -317,8 +322,6 @@ def test_nonfinite_input():
     theta = np.asarray(PowerLibrary().fit(X).transform(X))
     assert np.all(np.isnan(theta[1, PowerLibrary().fit(X).exponents_[:, 1] != 0]))
     assert np.all(np.isfinite(np.delete(theta, 1, axis=0)))
-    with pytest.raises(ValueError, match="nonfinite='zero'"):
-        PowerLibrary(nonfinite="zero").fit(X).transform(X)
 
 
 def test_downstream_pysindy_optimizer_refuses_kept_inf_and_zero_mode_fits():
@@ -410,21 +413,15 @@ def test_trajectories_and_leading_axes():
     out3 = np.asarray(lib.transform(X3))
     assert out3.shape == (2, 5, lib.n_output_features_)
     np.testing.assert_array_equal(out3[1], lib.transform(X2))
-    with pytest.raises(ValueError, match="same number of features"):
-        PowerLibrary().fit([X1, X1[:, :1]])
 
 
-def test_input_not_modified_and_shape_checked():
+def test_input_not_modified():
     X = _random_data(9, 2)
     X[0, 0] = 0.0
     before = X.copy()
     lib = PowerLibrary(nonfinite="zero").fit(X)
     lib.transform(X)
     np.testing.assert_array_equal(X, before)
-    with pytest.raises(ValueError, match="2 feature columns"):
-        lib.transform(np.ones((4, 3)))
-    with pytest.raises(TypeError, match="dense"):
-        lib.transform(sparse.csr_matrix(X))
 
 
 def test_clone_params_pickle():
@@ -442,35 +439,17 @@ def test_clone_params_pickle():
     assert fresh.n_output_features_ < lib.n_output_features_
 
 
-@pytest.mark.parametrize(
-    "param, value, error, match",
-    [
-        ("powers", (), ValueError, "powers must not be empty"),
-        ("powers", (0, 1), ValueError, "powers must not contain 0"),
-        ("powers", (1, 1.5), ValueError, "powers must contain integers"),
-        ("powers", (1, np.inf), ValueError, "powers must contain integers"),
-        ("powers", (1, 2, 1), ValueError, "powers contains duplicates"),
-        ("powers", "123", TypeError, "powers must be a sequence"),
-        ("powers", 2, TypeError, "powers must be a sequence"),
-        ("powers", (1, True), TypeError, "powers must contain integers"),
-        ("abs_powers", (1, 2), ValueError, "abs_powers must contain odd"),
-        ("abs_powers", (0,), ValueError, "abs_powers must not contain 0"),
-        ("abs_powers", (0.5,), ValueError, "abs_powers must contain integers"),
-        ("abs_powers", (1, "3"), TypeError, "abs_powers must contain integers"),
-        ("cross_products", "yes", TypeError, "cross_products"),
-        ("signed_abs_products", None, TypeError, "signed_abs_products"),
-        ("power_products", 1, TypeError, "power_products"),
-        ("include_constant", "no", TypeError, "include_constant"),
-        ("nonfinite", "inf", ValueError, "nonfinite must be one of"),
-    ],
-)
-def test_bad_parameters_raise_in_fit(param, value, error, match):
-    lib = PowerLibrary(**{param: value})  # __init__ only stores
-    with pytest.raises(error, match=match):
-        lib.fit(np.ones((3, 2)))
-
-
 def test_integral_floats_are_accepted_as_powers():
     lib = PowerLibrary(powers=np.array([1.0, 2.0]), abs_powers=[np.int64(1)])
     names = lib.fit(np.ones((2, 1))).get_feature_names()
     assert names[:3] == ["x0", "x0^2", "|x0|"]
+
+
+def test_power_library_leaves_inputs_and_random_state_alone():
+    x = readonly(np.random.default_rng(2).standard_normal((50, 2)))
+    before = global_random_state()
+    lib = PowerLibrary()
+    a = np.asarray(lib.fit(x).transform(x))
+    b = np.asarray(PowerLibrary().fit(x).transform(x))
+    np.testing.assert_array_equal(a, b)
+    assert_same_global_random_state(before)

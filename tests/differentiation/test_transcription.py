@@ -4,8 +4,8 @@
    estimate of a linear Gaussian state-space model (process noise
    ``d_k ~ N(0, (h_k W)^-1)`` held over each interval, flat prior on
    ``x_0``), so it must equal a Kalman filter + Rauch-Tung-Striebel smoother
-   written here from scratch with the exact discretisation (matrix
-   exponentials) and a diffuse prior.
+   written from scratch with the exact discretisation (matrix exponentials)
+   and a diffuse prior (``tests/kalman_reference.py``).
 2. Its marginal likelihood must equal the Kalman filter's prediction-error
    decomposition (with the diffuse prior's normalisation removed).
 3. For the integrated random walk (``x1' = x2, x2' = d``) it must approach
@@ -14,89 +14,19 @@
 4. A change of units ``x -> c x`` maps the problem onto itself (the model,
    the measurement and ``R``, ``W`` transformed accordingly), so the estimate
    must transform exactly, and the marginal likelihood as a density does.
-5. Failure diagnosis: unobservable directions are found at any noise level
-   and growth rate, a stiff model is not mistaken for an unobservable one.
+
+The W search is tested in ``test_weight.py``, the failure diagnosis
+(observability) in ``test_observability.py``.
 """
 
 import numpy as np
 import pytest
 from derivative import Kalman
-from scipy.linalg import expm
+from kalman_reference import kalman_rts
 
 from pysindy_mme import MME
-from pysindy_mme.core.model import ModelFunction
-from pysindy_mme.smoother import MMESmoother, internal_unit, unobservable_states
+from pysindy_mme.smoother import MMESmoother, internal_unit
 from pysindy_mme.systems import duffing, van_der_pol
-
-# ---------------------------------------------------------------- reference
-
-
-def _discretise(A, B, h):
-    """Exact ZOH discretisation: Phi = e^{Ah}, Gamma = int_0^h e^{As} ds B."""
-    n, q = B.shape
-    M = np.zeros((n + q, n + q))
-    M[:n, :n] = A
-    M[:n, n:] = B
-    E = expm(M * h)
-    return E[:n, :n], E[:n, n:]
-
-
-def kalman_rts(A, B, C, R, W, y, t, p0=1e8):
-    """Kalman filter + RTS smoother for x' = A x + B d, y = C x + v.
-
-    ``d`` is constant on each interval with covariance ``(h W)^-1``, which is
-    the ZOH reading of the MME cost; the prior on ``x_0`` is ``N(0, p0 I)``.
-    Missing measurements (NaN) are skipped. (``p0 = 1e10`` would lose about
-    six digits to cancellation in the covariance update; ``1e8`` is diffuse
-    enough that its pull on the estimate is below 1e-7.) Returns the
-    smoothed states, the smoothed model errors on the intervals, and
-    ``-2 log p(y)`` (prediction error decomposition).
-    """
-    N, n = len(t), A.shape[0]
-    Winv = np.linalg.inv(W)
-    xf = np.zeros((N, n))
-    Pf = np.zeros((N, n, n))
-    xp = np.zeros((N, n))
-    Pp = np.zeros((N, n, n))
-    Phis, Gams = [], []
-    x, P = np.zeros(n), p0 * np.eye(n)
-    n2ll = 0.0
-    for k in range(N):
-        if k > 0:
-            h = t[k] - t[k - 1]
-            Phi, Gam = _discretise(A, B, h)
-            Phis.append(Phi)
-            Gams.append(Gam)
-            x = Phi @ x
-            P = Phi @ P @ Phi.T + Gam @ (Winv / h) @ Gam.T
-        xp[k], Pp[k] = x, P
-        ok = ~np.isnan(y[k])
-        if ok.any():
-            Ck, Rk = C[ok], R[np.ix_(ok, ok)]
-            e = y[k, ok] - Ck @ x
-            S = Ck @ P @ Ck.T + Rk
-            K = P @ Ck.T @ np.linalg.inv(S)
-            x = x + K @ e
-            P = (np.eye(n) - K @ Ck) @ P
-            P = 0.5 * (P + P.T)
-            n2ll += np.linalg.slogdet(S)[1] + e @ np.linalg.solve(S, e)
-            n2ll += ok.sum() * np.log(2 * np.pi)
-        xf[k], Pf[k] = x, P
-    xs = xf.copy()
-    ds = np.zeros((N - 1, B.shape[1]))
-    for k in range(N - 2, -1, -1):
-        Gk = Pf[k] @ Phis[k].T @ np.linalg.inv(Pp[k + 1])
-        xs[k] = xf[k] + Gk @ (xs[k + 1] - xp[k + 1])
-        h = t[k + 1] - t[k]
-        # E[d_k | y]: d_k is independent of y_0..y_k, so it is updated only
-        # through x_{k+1}: Cov(d_k, x_{k+1}) = (hW)^-1 Gamma^T.
-        ds[k] = (
-            (Winv / h) @ Gams[k].T @ np.linalg.solve(Pp[k + 1], xs[k + 1] - xp[k + 1])
-        )
-    # remove the prior's normalisation: a flat prior has density 1, the
-    # N(0, p0 I) prior (2 pi p0)^{-n/2}
-    n2ll -= n * np.log(2 * np.pi * p0)
-    return xs, ds, n2ll
 
 
 def _irregular_times(rng, n, mean_step):
@@ -203,29 +133,6 @@ def test_random_walk_error_model_equals_augmented_kalman_smoother(measurement):
     np.testing.assert_allclose(
         mme.derivative_, zs[:, :2] @ A.T + zs[:, 2:] @ B.T, atol=1e-5
     )
-
-
-def test_maximum_likelihood_W_maximises_the_kalman_likelihood():
-    """W='ml' lands on the maximum of the independent Kalman likelihood."""
-    system = duffing()
-    m = system.measure(5, t=np.arange(0, 15, 0.05))
-    A = np.array([[0.0, 1.0], [-1.0, -0.1]])
-    mme = MME(
-        system.assumed_model,
-        2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        W="ml",
-    ).fit(m.y, m.t)
-    C, R, B = np.array([[1.0, 0.0]]), np.array([[0.01]]), np.array([[0.0], [1.0]])
-
-    def ll(w):
-        return -0.5 * kalman_rts(A, B, C, R, np.array([[w]]), m.y, m.t)[2]
-
-    best = ll(mme.W_)
-    assert best >= ll(mme.W_ * 1.05) and best >= ll(mme.W_ / 1.05)
-    assert mme.log_likelihood_ == pytest.approx(best, abs=1e-4)
 
 
 def test_integrated_random_walk_approaches_continuous_kalman():
@@ -357,78 +264,3 @@ def test_internal_unit_is_a_power_of_two_near_the_noise_sd():
         s = internal_unit(np.array([[var]]))
         assert np.log2(s) == int(np.log2(s))  # exact change of units
         assert 2**-0.5 <= s / np.sqrt(var) <= 2**0.5
-
-
-# --------------------------------------------------------- failure diagnosis
-
-
-@pytest.mark.parametrize("noise_variance", [1e-12, 1e-2, 1.0, 1e8])
-@pytest.mark.parametrize("rate", [0.0, 60.0])
-def test_unobservable_direction_is_found_at_any_noise_level(noise_variance, rate):
-    """y sees only x0 + x1 of x' = rate x + d: x0(0) - x1(0) is undetermined.
-
-    In floating point the KKT pivot of that direction is rounding (~1e-16
-    relative), not zero, and a tiny W gives well-posed problems pivots as
-    small; the observability of the linearisation settles it (at 1.0 the
-    old pivot test let this through silently). With ``rate = 60`` the
-    transition matrices grow 4.5-fold per step (1e260 over 400 steps): they
-    are renormalised, so the direction is still named.
-    """
-    t = np.arange(1000) * 0.025
-    y = np.sqrt(noise_variance) * (
-        10 * np.sin(t)[:, None] + np.random.default_rng(0).standard_normal((t.size, 1))
-    )
-    mme = MME(
-        lambda x, t: rate * x,
-        2,
-        measurement_matrix=[[1.0, 1.0]],
-        noise_variance=noise_variance,
-        error_states=[0, 1],
-        W=1.0 / noise_variance,
-    )
-    with pytest.raises(ValueError, match=r"not all observable.*\[\+1 x0 -1 x1\]"):
-        mme.fit(y, t)
-
-
-def test_weakly_determined_problem_is_not_declared_singular(monkeypatch):
-    """At W = 1e-12 times the reference (the bottom of the W search) the
-    unmeasured velocity is nearly free and the KKT pivots span ~17 decades,
-    like a singular problem's: the observability check must be consulted
-    and clear it; the estimate then follows the data."""
-    checks = []
-    original = MMESmoother._unobservable_directions
-
-    def spy(self, lin, *args):
-        checks.append(original(self, lin, *args))
-        return checks[-1]
-
-    monkeypatch.setattr(MMESmoother, "_unobservable_directions", spy)
-    m = van_der_pol().measure(0)
-    mme = MME(
-        lambda x, t: np.column_stack([x[:, 1], np.zeros(len(x))]),
-        2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        W=0.025 / 0.01 * 1e-12,
-    ).fit(m.y, m.t)
-    assert checks and all(c == [] for c in checks)  # consulted, found none
-    assert mme.converged_
-    assert np.all(np.isfinite(mme.smoothed_x_))
-    np.testing.assert_allclose(mme.smoothed_x_[:, 0], m.y[:, 0], atol=1e-4)
-
-
-def test_stiff_equation_does_not_hide_the_coupling_of_another():
-    """x1' = x2, x2' = -1e11 x1 (a model in the wrong units): df1/dx2 = 1 is
-    tiny next to 1e11, but only relative to another equation; x2 drives the
-    measured x1 and is observable."""
-    model = ModelFunction(lambda x, t: np.column_stack([x[:, 1], -1e11 * x[:, 0]]), 2)
-    x = np.random.default_rng(0).standard_normal((50, 2))
-    t = np.arange(50) * 0.025
-    assert unobservable_states(model, x, t, None, np.array([[True, False]])) == []
-    # and a state that drives nothing measured is still found
-    model3 = ModelFunction(
-        lambda x, t: np.column_stack([x[:, 1], -1e11 * x[:, 0], 1e-12 * x[:, 2]]), 3
-    )
-    x3 = np.random.default_rng(1).standard_normal((50, 3))
-    assert unobservable_states(model3, x3, t, None, np.array([[1, 0, 0]])) == [2]

@@ -1,0 +1,124 @@
+"""When the numbers are doubtful: which quantities, and what to try.
+
+A solver that stopped early, or data that cannot tell two terms apart, does
+not spoil every coefficient alike. The covariance of the final output-error
+fit (the same factorisation the tests use) says which ones: a quantity whose
+relative standard error is large is the least determined by the data and the
+most moved by an unconverged fit; two terms whose estimates are almost
+perfectly correlated trade off against each other (look-alikes, such as
+``x`` and ``x^3`` on a small amplitude). The notes name them and say what
+would help, so that a user does not only learn that a solver stopped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.tables import sig
+
+__all__ = ["doubt_notes"]
+
+# A 95 % interval that reaches within half the value of zero: 1.96 * se > |v| / 2.
+WEAK_RELATIVE_SE = 0.25
+# Estimates this correlated cannot be told apart by the data.
+LOOK_ALIKE_CORRELATION = 0.98
+MAX_NAMED = 4
+
+
+def doubt_notes(fit, names) -> list:
+    """Notes on a final fit: non-convergence, undetermined and look-alike terms.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The extended model's output-error fit.
+    names : list of str
+        A name for each of ``fit``'s physical parameters and correction terms,
+        in the order of ``fit.theta`` (offsets excluded).
+    """
+    k = len(names)
+    theta = np.asarray(fit.theta[:k], dtype=float)
+    cov = np.asarray(fit.covariance[:k, :k], dtype=float)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = se / np.abs(theta)
+    undetermined = ~np.isfinite(rel)
+    weak = np.isfinite(rel) & (rel > WEAK_RELATIVE_SE)
+    pairs = _look_alikes(cov, names, undetermined)
+
+    notes = []
+    if not fit.converged:
+        notes.append(_not_converged(fit, names, rel, undetermined, pairs))
+    elif weak.any():
+        listed = _by_doubt(names, rel, weak)
+        notes.append(
+            f"the data hardly determine {listed}: their values are uncertain; a "
+            "longer record, or an input that excites them, would pin them down"
+        )
+    if undetermined.any():
+        notes.append(
+            "some coefficients of the extended model are not determined by the "
+            f"data ({_join([names[j] for j in np.flatnonzero(undetermined)])}: "
+            "standard errors reported as n/a); remove one of each group of "
+            "look-alike functions from the library, or fix a parameter"
+        )
+    for a, b, r in pairs:
+        notes.append(
+            f"{a} and {b} can hardly be told apart in these data (correlation "
+            f"of their estimates {r:+.3f}): their sum is determined, not each "
+            "value; offer the library only one of them, or a record of larger "
+            "amplitude"
+        )
+    return notes
+
+
+def _not_converged(fit, names, rel, undetermined, pairs) -> str:
+    text = (
+        "the output-error refit of the extended model did not converge "
+        f"({fit.message}); its coefficients may be inaccurate"
+    )
+    doubtful = np.isfinite(rel) & ~undetermined
+    if doubtful.any():
+        text += ", most of all the least determined ones: " + _by_doubt(
+            names, rel, doubtful
+        )
+    tips = []
+    if pairs or undetermined.any():
+        tips.append("a library without look-alikes of these terms")
+    tips += [
+        "a noise_variance checked against the sensor (too small a value makes "
+        "every mismatch significant)",
+        "the assumed model's uncertain constants as parameters= (grey box)",
+        "a shorter record first (rows=) to see whether the terms hold",
+    ]
+    return text + ". Try: " + "; ".join(tips)
+
+
+def _by_doubt(names, rel, mask) -> str:
+    """Names with their relative standard error, least determined first."""
+    order = [j for j in np.argsort(-np.where(mask, rel, -np.inf)) if mask[j]]
+    shown = [f"{names[j]} (se {sig(100 * rel[j], 2)} %)" for j in order[:MAX_NAMED]]
+    more = len(order) - MAX_NAMED
+    return _join(shown) + (f" and {more} more" if more > 0 else "")
+
+
+def _look_alikes(cov, names, undetermined) -> list:
+    """(name, name, correlation) of estimate pairs beyond the threshold."""
+    ok = np.flatnonzero(~undetermined & (np.diag(cov) > 0))
+    if ok.size < 2:
+        return []
+    sub = cov[np.ix_(ok, ok)]
+    d = np.sqrt(np.diag(sub))
+    corr = sub / np.outer(d, d)
+    pairs = []
+    for a in range(ok.size):
+        for b in range(a + 1, ok.size):
+            if abs(corr[a, b]) > LOOK_ALIKE_CORRELATION:
+                pairs.append((names[ok[a]], names[ok[b]], float(corr[a, b])))
+    pairs.sort(key=lambda p: -abs(p[2]))
+    return pairs[:MAX_NAMED]
+
+
+def _join(items) -> str:
+    items = list(items)
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]

@@ -1,0 +1,12 @@
+"""Feature libraries: candidate functions of the states for the regression.
+
+:class:`PowerLibrary` (``power.py``) is the function library of Kolodziej &
+Mook's Table I as a pysindy feature library: signed and absolute powers of
+each variable and their products. A new library goes in a module of its own
+here (a ``pysindy.feature_library.base.BaseFeatureLibrary`` subclass), is
+exported below, and gets its tests in ``tests/feature_library/``.
+"""
+
+from .power import PowerLibrary
+
+__all__ = ["PowerLibrary"]
