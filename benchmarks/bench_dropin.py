@@ -303,12 +303,16 @@ def _record(system_index: int, level: float, seed: int):
 
 
 def run_record(task):
-    """All methods on one record; results cached as JSON next to the others."""
-    system_index, level, seed, labels, cache = task
+    """All methods on one record; results cached as JSON next to the others.
+
+    With ``compute=False`` only what the cache holds is returned."""
+    system_index, level, seed, labels, cache, compute = task
     path = cache / f"{system_index}_{level:g}_{seed}.json"
     done = json.loads(path.read_text()) if path.exists() else {}
     todo = [label for label in labels if label not in done]
-    if todo:
+    if not compute:
+        labels = [label for label in labels if label in done]
+    elif todo:
         theta, dx, coef = _record(system_index, level, seed)
         for label in todo:
             done[label] = evaluate(label, theta, dx, coef)
@@ -316,19 +320,26 @@ def run_record(task):
     return system_index, level, seed, {label: done[label] for label in labels}
 
 
-def _labels(system: System, wide_all: bool):
+def _labels(system: System, wide_all: bool, methods=None):
+    labels = [label for label in METHODS if methods is None or label in methods]
     if system.wide and not wide_all:
-        return [label for label in METHODS if label in WIDE_DEFAULT]
-    return list(METHODS)
+        return [label for label in labels if label in WIDE_DEFAULT]
+    return labels
 
 
-def run(seeds, jobs=1, wide_all=False, cache=None, systems=None):
-    """{(system, level): {label: [(exact, err, seconds) per seed]}}."""
+def run(
+    seeds, jobs=1, wide_all=False, cache=None, systems=None, methods=None, compute=True
+):
+    """{(system, level): {label: [(exact, err, seconds) per seed]}}.
+
+    ``methods``: the labels to run (default all); ``compute=False``: only
+    read what the cache holds (a method may then have fewer seeds in a row).
+    """
     cache = Path(cache)
     cache.mkdir(parents=True, exist_ok=True)
     systems = range(len(SYSTEMS)) if systems is None else systems
     tasks = [
-        (i, level, seed, _labels(SYSTEMS[i], wide_all), cache)
+        (i, level, seed, _labels(SYSTEMS[i], wide_all, methods), cache, compute)
         for i in systems
         for level in NOISE_LEVELS
         for seed in seeds
@@ -342,13 +353,13 @@ def run(seeds, jobs=1, wide_all=False, cache=None, systems=None):
     else:
         for i, level, seed, res in map(run_record, tasks):
             results.setdefault((i, level), {})[seed] = res
-    return {
-        key: {
-            label: [per_seed[s][label] for s in sorted(per_seed)]
-            for label in next(iter(per_seed.values()))
-        }
-        for key, per_seed in results.items()
-    }
+    out = {}
+    for key, per_seed in results.items():
+        row = out.setdefault(key, {})
+        for s in sorted(per_seed):
+            for label, value in per_seed[s].items():
+                row.setdefault(label, []).append(value)
+    return out
 
 
 def print_tables(results, n_seeds):
@@ -359,6 +370,7 @@ def print_tables(results, n_seeds):
     print("|---|---|" + "---|" * len(labels))
     totals = {"narrow": dict.fromkeys(labels, 0), "all": dict.fromkeys(labels, 0)}
     errs, times = {lb: [] for lb in labels}, {lb: [] for lb in labels}
+    seeds_run = {lb: 0 for lb in labels}
     for (i, level), row in sorted(results.items()):
         cells = []
         for label in labels:
@@ -366,7 +378,10 @@ def print_tables(results, n_seeds):
                 cells.append("n/a")
                 continue
             hits = sum(r[0] for r in row[label])
-            cells.append(str(hits))
+            seeds_run[label] += len(row[label])
+            # a cell with fewer seeds than the others says how many it has
+            short = len(row[label]) < n_seeds
+            cells.append(f"{hits}/{len(row[label])}" if short else str(hits))
             totals["all"][label] += hits
             if not SYSTEMS[i].wide:
                 totals["narrow"][label] += hits
@@ -388,6 +403,13 @@ def print_tables(results, n_seeds):
         "| median time per fit [s] |"
     )
     print("|---|---|---|---|---|")
+    incomplete = [lb for lb in labels if 0 < seeds_run[lb] < max(seeds_run.values())]
+    if incomplete:
+        print(
+            "(incomplete, cells marked hits/seeds: "
+            + ", ".join(f"{lb} {seeds_run[lb]} records" for lb in incomplete)
+            + ")"
+        )
     for label in labels:
         err = np.median(errs[label]) if errs[label] else np.nan
         sec = np.median(times[label]) if times[label] else np.nan
@@ -408,13 +430,33 @@ def main(argv=None):
         help="every method on the 5,000-column library (hours)",
     )
     parser.add_argument(
+        "--methods",
+        help="comma-separated labels to run (default: all), e.g. 'STLSQ,ours'",
+    )
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="print the tables from the cache without fitting anything",
+    )
+    parser.add_argument(
         "--cache",
         default=str(Path(tempfile.gettempdir()) / "pysindy_mme_bench_dropin"),
         help="folder for per-record results",
     )
     args = parser.parse_args(argv)
     n_seeds = 3 if args.quick else args.seeds
-    results = run(range(n_seeds), args.jobs, args.wide_all, args.cache)
+    methods = None if args.methods is None else args.methods.split(",")
+    unknown = sorted(set(methods or ()) - set(METHODS))
+    if unknown:
+        parser.error(f"--methods: unknown {unknown}; choose from {list(METHODS)}")
+    results = run(
+        range(n_seeds),
+        args.jobs,
+        args.wide_all,
+        args.cache,
+        methods=methods,
+        compute=not args.report_only,
+    )
     print_tables(results, n_seeds)
     return results
 

@@ -24,6 +24,7 @@ from sklearn.base import clone
 
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel, rowwise_jacobian
+from ..core.tables import sig
 from .confirm import Confirmation, confirm_terms
 from .gain import Gain, free_run, rmse
 from .output_error import OutputErrorFit, OutputErrorModel
@@ -294,7 +295,9 @@ def confirm_on_measurements(
     return confirmation
 
 
-def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None:
+def step_size_check(
+    engine: OutputErrorModel, fit: OutputErrorFit, names=None
+) -> str | None:
     """Refit with twice the RK4 steps; a note if the answer moves.
 
     A coefficient that moves by more than half its standard error, or a
@@ -303,7 +306,8 @@ def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None
     The refit is skipped when its linearised prediction
     (:meth:`OutputErrorModel.integrator_effect`) moves no parameter by a
     tenth of its standard error and the trajectory by less than a tenth of
-    the noise.
+    the noise. ``names`` (one per entry of ``fit.theta``, offsets may be
+    left out) lets the note name the quantities that moved most.
     """
     dtheta, dx = engine.integrator_effect(fit)
     se = fit.std_errors
@@ -321,12 +325,31 @@ def step_size_check(engine: OutputErrorModel, fit: OutputErrorFit) -> str | None
     if np.any(moved) or abs(check.cost - fit.cost) > 1.0:
         return (
             "the result changes with the integration step (refitted with twice "
-            f"the RK4 steps: cost {fit.cost:.6g} -> {check.cost:.6g}, coefficients "
-            f"{np.array2string(fit.theta, precision=4)} -> "
-            f"{np.array2string(check.theta, precision=4)}): the model is stiff or "
-            "not smooth at this sampling rate; treat its numbers with care"
+            f"the RK4 steps: cost {fit.cost:.6g} -> {check.cost:.6g}"
+            f"{_moved_most(fit.theta, check.theta, se, names)}): the model is "
+            "stiff or not smooth at this sampling rate; treat its numbers with care"
         )
     return None
+
+
+def _moved_most(before, after, se, names, shown=3) -> str:
+    """``; y^3 in v' -7.065e+05 -> -7.061e+05 (0.9 se), ...``: the largest
+    moves in units of the standard error."""
+    k = len(before) if names is None else min(len(names), len(before))
+    if k == 0:
+        return ""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        in_se = np.abs(after[:k] - before[:k]) / se[:k]
+    in_se = np.where(np.isfinite(in_se), in_se, 0.0)
+    parts = []
+    for j in np.argsort(-in_se)[:shown]:
+        if in_se[j] <= 0:
+            break
+        name = f"theta[{j}]" if names is None else names[j]
+        parts.append(
+            f"{name} {sig(before[j])} -> {sig(after[j])} ({sig(in_se[j], 2)} se)"
+        )
+    return "; " + ", ".join(parts) if parts else ""
 
 
 def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:

@@ -321,7 +321,7 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
                 "optimum"
             )
         notes += _noise_sanity(study, fit)
-        check = step_size_check(engine, fit)
+        check = step_size_check(engine, fit, names)
         if check:
             notes.append(check)
         used = {c for _, c in confirmation.slots}
