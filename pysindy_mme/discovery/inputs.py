@@ -127,6 +127,15 @@ class Study:
         return self.state_names + self.input_names
 
 
+# pysindy libraries built for other problems than an ODE's right-hand side
+_NOT_FOR_ODES = {
+    "PDELibrary": "describes partial differential equations (spatial derivatives)",
+    "WeakPDELibrary": "is the weak (integral) form, which needs no derivatives",
+    "SINDyPILibrary": "is for implicit equations (SINDy-PI)",
+    "ParameterizedLibrary": "needs control parameters as a second input",
+}
+
+
 def _library(feature_library):
     if feature_library is None:
         import pysindy as ps
@@ -136,6 +145,13 @@ def _library(feature_library):
         raise TypeError(
             "feature_library must be a pysindy feature library, got "
             f"{type(feature_library).__name__}"
+        )
+    kind = type(feature_library).__name__
+    if kind in _NOT_FOR_ODES:
+        raise TypeError(
+            f"feature_library: {kind} {_NOT_FOR_ODES[kind]}; discover needs "
+            "functions of the state (and inputs), such as ps.PolynomialLibrary, "
+            "ps.FourierLibrary, ps.CustomLibrary or their sums and products"
         )
     return feature_library
 
