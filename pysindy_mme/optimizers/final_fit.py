@@ -69,6 +69,14 @@ def final_fit(
         with np.errstate(over="ignore", under="ignore"):
             return float(value * y_unit * y_unit)
 
+    def units(value, *factors):
+        # Exact power-of-two conversions back to data units; a coefficient
+        # beyond the double range in these units is inf, as it must be.
+        with np.errstate(over="ignore", under="ignore"):
+            for factor in factors:
+                value = value * factor
+            return value
+
     if rule.robust:
         table = _with_robust_statistics(table, xs, y, w, k, rule)
     table = replace(
@@ -76,10 +84,10 @@ def final_fit(
         n_candidates=rule.family_size(k),
         features=tuple(int(j) for j in support),
         out_features=tuple(top),
-        coefficients=table.coefficients * col_unit * y_unit,
-        std_errors=table.std_errors * col_unit * y_unit,
-        intercept=float(table.intercept * y_unit),
-        intercept_std_error=float(table.intercept_std_error * y_unit),
+        coefficients=units(table.coefficients, col_unit, y_unit),
+        std_errors=units(table.std_errors, col_unit, y_unit),
+        intercept=float(units(table.intercept, y_unit)),
+        intercept_std_error=float(units(table.intercept_std_error, y_unit)),
         ss_regression=squared_units(table.ss_regression),
         ss_residual=squared_units(table.ss_residual),
         ss_total=squared_units(table.ss_total),
@@ -105,7 +113,7 @@ def final_fit(
     dropped = bool(drop_constant and insignificant)
     if dropped:
         icpt = 0.0
-        row[support] = origin * col_unit * y_unit
+        row[support] = units(origin, col_unit, y_unit)
     else:
         icpt = table.intercept
         row[support] = table.coefficients

@@ -97,9 +97,16 @@ class IncrementalQR:
         self.g_sse = self.sse()
 
     def coefficients(self) -> np.ndarray:
-        """Least-squares coefficients of ``[constant, support...]`` (data units)."""
-        beta = scipy.linalg.solve_triangular(self.T, self.z) * self.y_unit
-        beta[1:] *= self.scale[self.support]
+        """Least-squares coefficients of ``[constant, support...]`` (data units).
+
+        A coefficient beyond the double range (a target in units of ``2**600``
+        on a column in units of ``2**-600``) is ``inf`` here, as in ``coef_``:
+        the selection works on scaled data and is unaffected.
+        """
+        beta = scipy.linalg.solve_triangular(self.T, self.z)
+        with np.errstate(over="ignore"):
+            beta *= self.y_unit
+            beta[1:] *= self.scale[self.support]
         return beta
 
     def coefficient_row(self) -> np.ndarray:
