@@ -16,13 +16,17 @@ import numpy as np
 
 from ..core.tables import sig
 
-__all__ = ["doubt_notes"]
+__all__ = ["doubt_notes", "generalisation_note"]
 
 # A 95 % interval that reaches within half the value of zero: 1.96 * se > |v| / 2.
 WEAK_RELATIVE_SE = 0.25
 # Estimates this correlated cannot be told apart by the data.
 LOOK_ALIKE_CORRELATION = 0.98
 MAX_NAMED = 4
+# A model that fits its own record to the noise but misses the validation
+# record by this factor of the noise floor has learnt that record, not the system.
+VALIDATION_EXCESS = 1.5
+IN_SAMPLE_AT_NOISE = 1.2
 
 
 def doubt_notes(fit, names) -> list:
@@ -70,6 +74,37 @@ def doubt_notes(fit, names) -> list:
             "amplitude"
         )
     return notes
+
+
+def generalisation_note(gain, names, channel_names) -> str | None:
+    """A note when the extended model fits its record to the noise but not the
+    validation record: the terms may be look-alikes of the true ones."""
+    if gain.validation_rmse_extended is None or not names:
+        return None
+    fit = np.asarray(gain.rmse_extended, dtype=float)
+    valid = np.asarray(gain.validation_rmse_extended, dtype=float)
+    floor = np.asarray(gain.noise_floor, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = valid / floor
+    bad = (
+        np.isfinite(excess)
+        & (excess > VALIDATION_EXCESS)
+        & (fit <= IN_SAMPLE_AT_NOISE * floor)
+    )
+    if not bad.any():
+        return None
+    where = _join(
+        [f"{channel_names[j]} {sig(excess[j], 2)}x" for j in np.flatnonzero(bad)]
+    )
+    return (
+        "the extended model fits this record to the noise but misses the "
+        f"validation record by more (RMSE over the noise floor: {where}): its "
+        f"terms ({_join(names[:MAX_NAMED])}"
+        f"{' ...' if len(names) > MAX_NAMED else ''}) may be look-alikes of the "
+        "missing effect that fit this record only; try a smaller library (fewer "
+        "look-alike functions), a longer record, or fitting on a record that "
+        "spans the validation record's amplitudes"
+    )
 
 
 def _not_converged(fit, names, rel, undetermined, pairs) -> str:

@@ -13,7 +13,7 @@ import numpy as np
 from ..core.progress import Progress
 from ..core.tables import sig
 from ..exceptions import DiscoveryWarning
-from .doubts import doubt_notes
+from .doubts import doubt_notes, generalisation_note
 from .extended import ExtendedModel
 from .inputs import check_study
 from .propose import propose_terms
@@ -309,6 +309,11 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
             for i, c in confirmation.slots
         ]
         notes += doubt_notes(fit, names)
+        general = generalisation_note(
+            gain, names[len(study.parameter_names) :], study.channel_names
+        )
+        if general:
+            notes.append(general)
         from scipy import stats
 
         p_fit = float(stats.chi2.sf(fit.cost, fit.dof))
