@@ -50,6 +50,7 @@ __all__ = [
     "long_run_variance",
     "newey_west_lags",
     "robust_candidate_f",
+    "robust_joint_f",
     "robust_in_model_f",
     "robust_table_statistics",
 ]
@@ -114,6 +115,28 @@ def robust_in_model_f(state, lags: int) -> np.ndarray:
     var = long_run_variance(c * state.e[:, None], lags)
     var *= _small_sample(state.e.size, k1)
     return safe_ratio(beta**2, var)
+
+
+def robust_joint_f(r: np.ndarray, e: np.ndarray, lags: int, n_model: int) -> float:
+    """Newey-West Wald statistic, divided by ``q``, for adding all ``q``
+    residualised columns ``r`` (n, q) to a model that leaves residual ``e``.
+
+    With ``g = r^T e`` and ``S`` the long-run covariance of the scores
+    ``r_t u_t`` (``u`` the residual of the enlarged model), the Wald
+    statistic is ``g^T S^-1 g``; divided by ``q`` it is an F-ratio, equal to
+    the classic joint F for white, homoscedastic residuals (HC1 factor).
+    """
+    q = r.shape[1]
+    b, *_ = np.linalg.lstsq(r, e, rcond=None)
+    h = r * (e - r @ b)[:, None]
+    cov = h.T @ h
+    for lag in range(1, lags + 1):
+        gamma = h[lag:].T @ h[:-lag]
+        cov += (1.0 - lag / (lags + 1.0)) * (gamma + gamma.T)
+    cov *= _small_sample(e.size, n_model + q)
+    g = r.T @ e
+    w = np.linalg.lstsq(cov, g, rcond=None)[0]
+    return float(g @ w) / q
 
 
 def robust_candidate_f(state, lags: int, classic_f: np.ndarray) -> np.ndarray:

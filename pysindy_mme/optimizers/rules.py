@@ -44,6 +44,7 @@ class ClassicRule:
 
     robust = False
     lags = 0
+    joint_alpha = None  # the classic rule is Draper & Smith's, as published
 
     def __init__(self, f_enter, f_remove, alpha_enter, alpha_remove, n_eff):
         self.f_enter = f_enter
@@ -104,6 +105,8 @@ class FamilywiseRule:
         self.n_eff = n_eff
         self.robust = bool(robust)
         self.lags = newey_west_lags(n_rows) if robust else 0
+        # candidates left out by forward selection are tested jointly at alpha
+        self.joint_alpha = alpha
 
     def family_size(self, k: int) -> int:
         """Number of candidates outside a model of ``k`` functions (at least 1)."""

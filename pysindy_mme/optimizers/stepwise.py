@@ -58,7 +58,11 @@ class FloatingFStepwise(BaseOptimizer):
     ``alpha``. Where the residual this leaves is smooth (lag-1
     autocorrelation above 0.9, as with MME's estimate of the model error),
     the selection is redone with the paper's rule (``F* = 10`` and its
-    floating Phase II), which was designed for that case.
+    floating Phase II), which was designed for that case. (Terms that matter
+    only together, whose parts no forward step admits alone, are caught where
+    Phase I leaves most of the target unexplained (R^2 < 0.8) by a joint test
+    of the candidates left out: if they are jointly significant, all enter
+    and the rule removes them one at a time; ``joint_tests_``.)
 
     :meth:`paper` gives the paper's rule for every target.
 
@@ -166,6 +170,12 @@ class FloatingFStepwise(BaseOptimizer):
     phase_one_lag1_ : ndarray (n_targets,)
         Lag-1 autocorrelation of the residual at the end of Phase I (what
         ``floating="auto"`` decides on).
+    joint_tests_ : list of (dict or None)
+        Per target, the joint test of the candidates Phase I left out under
+        the default rule (``{"n", "f", "p", "restart"}``; None where it did
+        not apply). ``restart``: they were jointly significant, so all were
+        added (steps with ``joint=True``) and removed again one at a time by
+        the rule, which finds terms that matter only together.
     converged_ : bool
         False if some target hit ``max_iter``.
     cycle_detected_ : bool
@@ -368,6 +378,7 @@ class FloatingFStepwise(BaseOptimizer):
         self.cycle_detected_ = False
         self.phase_two_ = np.zeros(n_targets, dtype=bool)
         self.phase_one_lag1_ = np.zeros(n_targets)
+        self.joint_tests_ = [None] * n_targets
         for t in range(n_targets):
             coef[t], intercept[t] = self._fit_target(
                 x, y[:, t], w, screen, rule, t, coef
@@ -488,6 +499,7 @@ class FloatingFStepwise(BaseOptimizer):
         self.n_iter_[target] = len(result.steps)
         self.phase_two_[target] = result.phase_two
         self.phase_one_lag1_[target] = result.phase_one_lag1
+        self.joint_tests_[target] = result.joint
         row, icpt, table, dropped = final_fit(
             state,
             x,

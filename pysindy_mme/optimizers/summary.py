@@ -151,6 +151,18 @@ def _notes(opt, t) -> list:
             f"({table.intercept_partial_f:.4g}) is below the removal "
             "threshold; coef_ is refit through the origin."
         )
+    joint = (getattr(opt, "joint_tests_", None) or [None] * (t + 1))[t]
+    if joint is not None:
+        outcome = (
+            "jointly significant: all were added (with the joint F), then removed "
+            "one at a time by the rule"
+            if joint["restart"]
+            else "not jointly significant"
+        )
+        notes.append(
+            f"  Joint test of the {joint['n']} candidates Phase I left out: "
+            f"F = {joint['f']:.4g}, p = {joint['p']:.2g}: {outcome}."
+        )
     if table.robust:
         notes.append(
             "  Phase I compares robust partial F-ratios (Newey-West) with the "

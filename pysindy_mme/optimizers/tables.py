@@ -26,8 +26,10 @@ __all__ = [
 
 def format_number(v) -> str:
     """Table II style numbers (:func:`pysindy_mme.core.tables.statistic`);
-    a non-finite value is shown as itself (``inf``: an exact fit's F)."""
+    ``inf`` (an exact fit's F) as itself, NaN (not defined) as ``n/a``."""
     v = float(v)
+    if np.isnan(v):
+        return "n/a"
     return str(v) if not np.isfinite(v) else statistic(v)
 
 
@@ -225,8 +227,9 @@ def steps_text(steps, feature_names=None) -> list:
         f"{'partial F':>12}{'threshold':>12}{'terms':>7}"
     )
     for it, phase, action, label, f, thr, terms in _step_rows(steps, name):
+        thr_text = "n/a" if np.isnan(thr) else f"{thr:.5g}"  # NaN: joint restart
         lines.append(
-            f"  {it:>4} {phase:>5} {action:<7}{label:<20}{f:>12.5g}{thr:>12.5g}"
+            f"  {it:>4} {phase:>5} {action:<7}{label:<20}{f:>12.5g}{thr_text:>12}"
             f"{terms:>7}"
         )
     return lines

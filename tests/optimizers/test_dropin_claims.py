@@ -61,6 +61,9 @@ def _row(bench, name, level, labels, seeds=range(20)):
         ("cubic oscillator", 0.001, 20, 0),
         ("Hopf (2 traj.)", 0.01, 20, 19),
         ("Lorenz", 0.01, 19, 20),
+        # the cancelling group mu y - y r^2, found by the joint restart
+        ("Hopf (2 traj.)", 0.05, 20, 13),
+        ("Rossler", 0.01, 19, 20),
     ],
 )
 def test_benchmark_rows(bench, name, level, ours, stlsq):
@@ -68,6 +71,17 @@ def test_benchmark_rows(bench, name, level, ours, stlsq):
     assert hits["STLSQ"] == stlsq
     assert hits["ours"] >= ours - 1
     assert hits["ours"] >= hits["STLSQ"] - 1
+
+
+def test_where_the_default_is_behind_stlsq(bench):
+    """The one row of the benchmark where the default is behind STLSQ() by
+    more than one seed: Rossler at 5 % noise (measured 11 vs 14). Smoothed
+    finite differences leave systematic errors in z's fast bursts, which
+    the robust tests rightly call significant and which STLSQ's magnitude
+    threshold ignores. Recorded so that a change in either count is seen."""
+    hits = _row(bench, "Rossler", 0.05, ["ours", "STLSQ"])
+    assert hits["STLSQ"] == 14
+    assert 9 <= hits["ours"] <= 13
 
 
 def test_benchmark_wide_library(bench):
