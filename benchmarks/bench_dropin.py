@@ -371,6 +371,7 @@ def print_tables(results, n_seeds):
     totals = {"narrow": dict.fromkeys(labels, 0), "all": dict.fromkeys(labels, 0)}
     errs, times = {lb: [] for lb in labels}, {lb: [] for lb in labels}
     seeds_run = {lb: 0 for lb in labels}
+    partial = dict.fromkeys(labels, False)
     for (i, level), row in sorted(results.items()):
         cells = []
         for label in labels:
@@ -381,6 +382,7 @@ def print_tables(results, n_seeds):
             seeds_run[label] += len(row[label])
             # a cell with fewer seeds than the others says how many it has
             short = len(row[label]) < n_seeds
+            partial[label] |= short
             cells.append(f"{hits}/{len(row[label])}" if short else str(hits))
             totals["all"][label] += hits
             if not SYSTEMS[i].wide:
@@ -403,7 +405,7 @@ def print_tables(results, n_seeds):
         "| median time per fit [s] |"
     )
     print("|---|---|---|---|---|")
-    incomplete = [lb for lb in labels if 0 < seeds_run[lb] < max(seeds_run.values())]
+    incomplete = [lb for lb in labels if partial[lb]]
     if incomplete:
         print(
             "(incomplete, cells marked hits/seeds: "
