@@ -110,6 +110,7 @@ def _check_mme_result(mme, system, y, t, record):
         assert np.mean(ratio) == pytest.approx(1.0, rel=0.03)
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=120)
 @given(
     problem=mme_problems(),
@@ -127,6 +128,7 @@ def test_mme_sane_or_documented_error(problem, error_model, case_counter):
         _check_mme_result(mme, system, y, t, record)
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=40)
 @given(
     problem=mme_problems(),
@@ -150,6 +152,7 @@ def test_mme_time_shift_gives_the_same_estimate(problem, shift, case_counter):
     np.testing.assert_allclose(b.t_, a.t_ + shift)
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=40)
 @given(problem=mme_problems(LINEAR_ASSUMED), log_unit=st.integers(-6, 6))
 def test_mme_units_scale_the_estimate(problem, log_unit, case_counter):

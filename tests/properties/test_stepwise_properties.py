@@ -156,6 +156,7 @@ def _check_stepwise_result(opt, X, Y, w):
     assert pred.shape == (n, T) and np.all(np.isfinite(pred[keep]))
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=300)
 @given(problem=regression_problems(), data=st.data())
 def test_stepwise_fit_sane_or_documented_error(problem, data, case_counter):
@@ -226,6 +227,7 @@ def _column_groups(X):
     return group
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=200)
 @given(problem=regression_problems(), data=st.data())
 def test_stepwise_selection_does_not_depend_on_column_order(
@@ -250,6 +252,7 @@ def test_stepwise_selection_does_not_depend_on_column_order(
         )
 
 
+@pytest.mark.slow  # many generated cases, seconds each: CI and the full run
 @settings(max_examples=200)
 @given(problem=regression_problems(), data=st.data())
 def test_stepwise_selection_does_not_depend_on_units(problem, data, case_counter):
