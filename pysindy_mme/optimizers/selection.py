@@ -19,10 +19,10 @@ in a Hopf normal form, whose parts nearly cancel on the limit cycle, so
 that none enters alone. When Phase I stops, the candidates left out are
 tested together (one F-test at level ``alpha``, Newey-West robust like
 the single-term tests); if they are jointly significant, every one is
-added and Phase I continues, removing the weakest by the same rule until all
-that remain pass (a backward elimination). Only where Phase I explains
-less than ``JOINT_MAX_R2`` of the target's variance (see there), for
-libraries of at most ``JOINT_MAX_CANDIDATES`` columns, and with ten
+added, the weakest are removed by the same rule until all that remain
+pass (a backward elimination, removals only), and Phase I continues. Only
+where Phase I explains less than ``JOINT_MAX_R2`` of the target's variance
+(see there), for libraries of at most ``JOINT_MAX_CANDIDATES`` columns, and with ten
 observations per column: beyond, the test costs more than the fit.
 
 Cycles: the floating threshold can send the selection round a loop (removing
@@ -149,11 +149,10 @@ class _CycleGuard:
     only on the state) until it reaches that state.
     """
 
-    def __init__(self):
-        start = (1, frozenset())
+    def __init__(self, start=(1, frozenset()), start_f: float = 0.0):
         self.visited = {start}
         self.trail = [start]  # states in the order visited
-        self.trail_f = [0.0]  # their overall F-ratios
+        self.trail_f = [start_f]  # their overall F-ratios
         self.goal = None
         self.replay_left = 0
         self.cycle = None
@@ -181,11 +180,12 @@ class _CycleGuard:
         return False
 
 
-def _next_action(state, rule, phase: int, ratio: float):
+def _next_action(state, rule, phase: int, ratio: float, backward: bool = False):
     """``(kind, column, partial F, threshold)`` of the next step, or None.
 
     Phase I compares the rule's statistics with its thresholds; Phase II the
     classic F-ratios with ``max(rule threshold, strongest F / ratio)``.
+    ``backward``: removals only (the elimination after a joint restart).
     """
     enter_thr, remove_thr = rule.thresholds(state.k)
     k = state.k
@@ -203,7 +203,7 @@ def _next_action(state, rule, phase: int, ratio: float):
     if k and float(np.min(f_in)) < remove_thr:
         i = int(np.argmin(f_in))
         return ("remove", state.support[i], float(f_in[i]), remove_thr)
-    if state.exact_fit():
+    if backward or state.exact_fit():
         return None
     f_cand = rule.candidate_f(state) if phase == 1 else state.candidate_f()
     if f_cand.size:
@@ -343,8 +343,12 @@ def select(
     phase = 1
     guard = _CycleGuard()
     joint_alpha = getattr(rule, "joint_alpha", None)
+    backward = False  # after a joint restart: removals only, then stepwise again
     while True:
-        action = _next_action(state, rule, phase, float_ratio)
+        action = _next_action(state, rule, phase, float_ratio, backward)
+        if action is None and backward:
+            backward = False
+            continue
         if action is None and phase == 1 and joint_alpha and out.joint is None:
             test = None if state.exact_fit() else joint_test(state, rule)
             if test is not None:
@@ -358,7 +362,12 @@ def select(
                     out.steps += added
                     if on_step is not None and added:
                         on_step(state)
-                    guard.record((1, frozenset(state.support)), state.overall_f())
+                    # A fresh guard: coming back to the forward model is the
+                    # restart finding nothing, not a cycle.
+                    guard = _CycleGuard(
+                        (1, frozenset(state.support)), state.overall_f()
+                    )
+                    backward = True
                     continue
         if action is None:
             if phase == 1:
