@@ -124,7 +124,8 @@ def _not_converged(fit, names, rel, undetermined, pairs) -> str:
         "a noise_variance checked against the sensor (too small a value makes "
         "every mismatch significant)",
         "the assumed model's uncertain constants as parameters= (grey box)",
-        "a shorter record first (rows=) to see whether the terms hold",
+        "a shorter stretch of the record first (--train-rows on the command line) "
+        "to see whether the terms hold",
     ]
     return text + ". Try: " + "; ".join(tips)
 
