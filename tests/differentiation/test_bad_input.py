@@ -17,42 +17,18 @@ from bad_input_support import (
     readonly,
     with_value,
 )
-
-from pysindy_mme import MME
-from pysindy_mme.systems import van_der_pol
+from paper_case import DATA as _DATA
+from paper_case import T, Y
+from paper_case import paper_mme as _mme
+from paper_case import paper_mme_fit as _mme_fit
+from paper_case import three_states as _three_states
 
 ENTRY_POINT = "MME"
-
-VDP = van_der_pol()
-_DATA = VDP.measure(0)
-Y = readonly(_DATA.y)  # (401, 1): x1 measured, noise variance 0.01
-T = readonly(_DATA.t)  # 40 Hz for 10 s
-
-
-def _three_states(x, t):
-    # x3 is neither measured nor driving anything measured: unobservable
-    return np.column_stack([x[:, 1], -x[:, 0], np.zeros(len(x))])
 
 
 def _transposed(x, t):
     # A classic slip: np.array([...]) stacks the equations as rows.
     return np.array([x[:, 1], -x[:, 0]])
-
-
-def _mme(**kwargs):
-    args = dict(
-        assumed_model=VDP.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-    )
-    args.update(kwargs)
-    return MME(**args)
-
-
-def _mme_fit(y=Y, t=T, **kwargs):
-    return _mme(**kwargs).fit(y, t)
 
 
 def _first_only(y):

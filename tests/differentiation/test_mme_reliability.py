@@ -9,6 +9,10 @@ import random
 
 import numpy as np
 import pytest
+from paper_case import DATA as _DATA
+from paper_case import VDP, T, Y
+from paper_case import paper_mme as _mme
+from paper_case import paper_mme_fit as _mme_fit
 from reliability_support import (
     assert_same_global_random_state,
     global_random_state,
@@ -18,28 +22,7 @@ from sklearn.exceptions import ConvergenceWarning
 
 from pysindy_mme import MME
 from pysindy_mme.smoother import DivergenceError
-from pysindy_mme.systems import lotka_volterra, van_der_pol
-
-VDP = van_der_pol()
-_DATA = VDP.measure(0)
-Y = readonly(_DATA.y)  # (401, 1): x1 measured, noise variance 0.01
-T = readonly(_DATA.t)  # 40 Hz for 10 s
-
-
-def _mme(**kwargs):
-    args = dict(
-        assumed_model=VDP.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-    )
-    args.update(kwargs)
-    return MME(**args)
-
-
-def _mme_fit(y=Y, t=T, **kwargs):
-    return _mme(**kwargs).fit(y, t)
+from pysindy_mme.systems import lotka_volterra
 
 
 def _mme_outputs(m):

@@ -18,34 +18,14 @@ from bad_input_support import (
     readonly,
     with_value,
 )
+from paper_case import DATA as _DATA
+from paper_case import T, Y
+from paper_case import paper_discover as _discover
+from paper_case import three_states as _three_states
 
-from pysindy_mme import PowerLibrary, discover
-from pysindy_mme.systems import van_der_pol
+from pysindy_mme import PowerLibrary
 
 ENTRY_POINT = "discover"
-
-VDP = van_der_pol()
-_DATA = VDP.measure(0)
-Y = readonly(_DATA.y)  # (401, 1): x1 measured, noise variance 0.01
-T = readonly(_DATA.t)  # 40 Hz for 10 s
-
-
-def _three_states(x, t):
-    # x3 is neither measured nor driving anything measured: unobservable
-    return np.column_stack([x[:, 1], -x[:, 0], np.zeros(len(x))])
-
-
-def _discover(y=Y, t=T, **kwargs):
-    args = dict(
-        assumed_model=VDP.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        feature_names=["x1", "x2"],
-    )
-    args.update(kwargs)
-    return discover(y, t, **args)
 
 
 BAD_INPUTS = [

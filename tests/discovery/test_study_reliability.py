@@ -12,6 +12,9 @@ import warnings
 import numpy as np
 import pysindy as ps
 import pytest
+from paper_case import DATA as _DATA
+from paper_case import VDP, T, Y
+from paper_case import paper_discover as _discover
 from reliability_support import (
     assert_same_global_random_state,
     global_random_state,
@@ -23,26 +26,7 @@ import pysindy_mme.mme as mme_module
 from pysindy_mme import discover
 from pysindy_mme.discovery import DiscoveryWarning
 from pysindy_mme.discovery.output_error import OutputErrorModel
-from pysindy_mme.systems import lotka_volterra, van_der_pol
-
-VDP = van_der_pol()
-_DATA = VDP.measure(0)
-Y = readonly(_DATA.y)  # (401, 1): x1 measured, noise variance 0.01
-T = readonly(_DATA.t)  # 40 Hz for 10 s
-
-
-def _discover(y=Y, t=T, **kwargs):
-    args = dict(
-        assumed_model=VDP.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        feature_names=["x1", "x2"],
-    )
-    args.update(kwargs)
-    return discover(y, t, **args)
-
+from pysindy_mme.systems import lotka_volterra
 
 # ------------------------------------------------------ determinism and units
 
