@@ -38,20 +38,14 @@ __all__ = [
 HOLDS = ("linear", "zoh", "cubic")
 
 
-def _catmull_rom(u, frac, k=None):
-    """Cubic (Catmull-Rom) interpolation of samples ``u`` at ``t_k + frac h_k``,
-    on every interval (``k=None``, one ``frac``) or on intervals ``k`` with a
-    ``frac`` each; the end intervals reuse their end samples."""
-    if k is None:
-        p0 = np.vstack([u[:1], u[:-2]])
-        p1, p2 = u[:-1], u[1:]
-        p3 = np.vstack([u[2:], u[-1:]])
-        s = frac
-    else:
-        last = u.shape[0] - 1
-        p0, p1 = u[np.maximum(k - 1, 0)], u[k]
-        p2, p3 = u[k + 1], u[np.minimum(k + 2, last)]
-        s = np.asarray(frac)[:, None]
+def _catmull_rom(u, k, frac):
+    """Cubic (Catmull-Rom) interpolation of samples ``u`` at ``t_k + frac h_k``
+    on intervals ``k`` (``frac`` one value or one per interval); the end
+    intervals reuse their end samples."""
+    last = u.shape[0] - 1
+    p0, p1 = u[np.maximum(k - 1, 0)], u[k]
+    p2, p3 = u[k + 1], u[np.minimum(k + 2, last)]
+    s = np.reshape(frac, (-1, 1))
     return 0.5 * (
         2 * p1
         + (p2 - p0) * s
@@ -118,7 +112,7 @@ class InputSignal:
             elif self.hold == "zoh":
                 val = self.u[:-1]
             elif self.hold == "cubic":
-                val = _catmull_rom(self.u, frac)
+                val = _catmull_rom(self.u, np.arange(self.t.size - 1), frac)
             else:
                 val = (1.0 - frac) * self.u[:-1] + frac * self.u[1:]
             self._cache[key] = val
@@ -142,7 +136,7 @@ class InputSignal:
                 np.searchsorted(self.t, s, side="right") - 1, 0, self.t.size - 2
             )
             frac = (s - self.t[k]) / (self.t[k + 1] - self.t[k])
-            return _catmull_rom(self.u, frac, k)
+            return _catmull_rom(self.u, k, frac)
         return np.column_stack(
             [np.interp(s, self.t, self.u[:, j]) for j in range(self.u.shape[1])]
         )

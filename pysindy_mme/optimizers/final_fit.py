@@ -63,19 +63,18 @@ def final_fit(
     col_unit = screen.scale[support]
     y_unit = np.float64(state.y_unit)
 
-    def squared_units(value):
-        # Sums of squares of data near 1e+-154 may not be representable
-        # (inf or 0); the selection itself ran on the scaled target.
-        with np.errstate(over="ignore", under="ignore"):
-            return float(value * y_unit * y_unit)
-
     def units(value, *factors):
         # Exact power-of-two conversions back to data units; a coefficient
-        # beyond the double range in these units is inf, as it must be.
+        # beyond the double range in these units is inf (and sums of squares
+        # of data near 1e+-154 inf or 0), as they must be: the selection
+        # itself ran on the scaled target.
         with np.errstate(over="ignore", under="ignore"):
             for factor in factors:
                 value = value * factor
             return value
+
+    def squared_units(value):
+        return float(units(value, y_unit, y_unit))
 
     if rule.robust:
         table = _with_robust_statistics(table, xs, y, w, k, rule)

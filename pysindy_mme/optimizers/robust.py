@@ -47,6 +47,7 @@ from ._numeric import safe_ratio
 
 __all__ = [
     "lag1_autocorrelation",
+    "long_run_covariance",
     "long_run_variance",
     "newey_west_lags",
     "robust_candidate_f",
@@ -69,6 +70,11 @@ def newey_west_lags(n: float) -> int:
     return int(np.floor(4.0 * (max(float(n), 1.0) / 100.0) ** (2.0 / 9.0)))
 
 
+def _bartlett(lags: int, n: int):
+    """``(k, weight)`` of the Bartlett kernel for lags ``1..min(lags, n - 1)``."""
+    return [(k, 1.0 - k / (lags + 1.0)) for k in range(1, min(lags, n - 1) + 1)]
+
+
 def long_run_variance(u: np.ndarray, lags: int) -> np.ndarray:
     """Bartlett-weighted sum of autocovariances of each column of ``u``.
 
@@ -79,12 +85,20 @@ def long_run_variance(u: np.ndarray, lags: int) -> np.ndarray:
     if u.ndim == 1:
         return long_run_variance(u[:, None], lags)[0]
     out = np.einsum("ij,ij->j", u, u)
-    for k in range(1, min(lags, u.shape[0] - 1) + 1):
-        weight = 1.0 - k / (lags + 1.0)
+    for k, weight in _bartlett(lags, u.shape[0]):
         out = out + 2.0 * weight * np.einsum("ij,ij->j", u[:-k], u[k:])
     # Bartlett weights make the estimate non-negative in exact arithmetic;
     # rounding can leave a tiny negative value.
     return np.maximum(out, 0.0)
+
+
+def long_run_covariance(u: np.ndarray, lags: int) -> np.ndarray:
+    """The whole matrix whose diagonal :func:`long_run_variance` gives."""
+    out = u.T @ u
+    for k, weight in _bartlett(lags, u.shape[0]):
+        gamma = u[k:].T @ u[:-k]
+        out += weight * (gamma + gamma.T)
+    return out
 
 
 def lag1_autocorrelation(e: np.ndarray) -> float:
@@ -128,11 +142,7 @@ def robust_joint_f(r: np.ndarray, e: np.ndarray, lags: int, n_model: int) -> flo
     """
     q = r.shape[1]
     b, *_ = np.linalg.lstsq(r, e, rcond=None)
-    h = r * (e - r @ b)[:, None]
-    cov = h.T @ h
-    for lag in range(1, lags + 1):
-        gamma = h[lag:].T @ h[:-lag]
-        cov += (1.0 - lag / (lags + 1.0)) * (gamma + gamma.T)
+    cov = long_run_covariance(r * (e - r @ b)[:, None], lags)
     cov *= _small_sample(e.size, n_model + q)
     g = r.T @ e
     w = np.linalg.lstsq(cov, g, rcond=None)[0]

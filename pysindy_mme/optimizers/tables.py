@@ -227,9 +227,8 @@ def steps_text(steps, feature_names=None) -> list:
         f"{'partial F':>12}{'threshold':>12}{'terms':>7}"
     )
     for it, phase, action, label, f, thr, terms in _step_rows(steps, name):
-        thr_text = "n/a" if np.isnan(thr) else f"{thr:.5g}"  # NaN: joint restart
         lines.append(
-            f"  {it:>4} {phase:>5} {action:<7}{label:<20}{f:>12.5g}{thr_text:>12}"
+            f"  {it:>4} {phase:>5} {action:<7}{label:<20}{f:>12.5g}{thr:>12.5g}"
             f"{terms:>7}"
         )
     return lines
