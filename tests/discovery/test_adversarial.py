@@ -10,56 +10,17 @@ sentence instead), no standard error of exactly zero, one verdict.
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pysindy as ps
 import pytest
+from oscillator_case import oscillator, record, study
 
-from pysindy_mme import DivergenceError, discover
+from pysindy_mme import DivergenceError
 from pysindy_mme.core.model import simulate_model
 from pysindy_mme.systems import van_der_pol
-
-
-def oscillator(damping):
-    """``x1' = x2, x2' = -x1 + damping(x2)``: a spring with a damping law."""
-
-    def f(x, t):
-        return np.column_stack([x[:, 1], -x[:, 0] + damping(x[:, 1])])
-
-    return f
-
-
-def linear_oscillator(x, t):
-    return np.column_stack([x[:, 1], -x[:, 0]])
-
-
-def record(model, x0, t_end=30.0, rate=20.0, noise=1e-3, seed=0, missing=0.0):
-    t = np.arange(0, t_end + 1e-9, 1 / rate)
-    x = simulate_model(model, x0, t, rtol=1e-10, atol=1e-12)
-    rng = np.random.default_rng(seed)
-    y = x[:, :1] + np.sqrt(noise) * rng.standard_normal((t.size, 1))
-    if missing:
-        y[rng.random(t.size) < missing] = np.nan
-    return y, t, x
-
-
-def study(y, t, model=linear_oscillator, noise=1e-3, **kwargs):
-    options = dict(
-        assumed_model=model,
-        n_states=2,
-        measured=[0],
-        noise_variance=noise,
-        error_states=[1],
-        feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["x1", "x2"],
-    )
-    options.update(kwargs)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return discover(y, t, **options)
 
 
 @dataclass

@@ -6,10 +6,10 @@ import warnings
 from types import SimpleNamespace
 
 import numpy as np
+from paper_case import VDP, paper_discover
 
-from pysindy_mme import PowerLibrary, discover
+from pysindy_mme import PowerLibrary
 from pysindy_mme.discovery.doubts import doubt_notes, generalisation_note
-from pysindy_mme.systems import van_der_pol
 
 NAMES = ["k", "x1 in x2'", "x1^3 in x2'"]
 
@@ -78,20 +78,13 @@ def test_look_alike_terms_that_fit_one_record_only_are_flagged():
     """The paper's Table I library on seed 2 of the paper's record: six
     look-alike terms fit the record to the noise, and miss a validation
     record by 2.3 times the noise floor; the report says so."""
-    system = van_der_pol()
-    data, check = system.measure(2), system.measure(1000, x0=(2.0, -1.0))
+    data, check = VDP.measure(2), VDP.measure(1000, x0=(2.0, -1.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(
+        res = paper_discover(
             data.y,
             data.t,
-            assumed_model=system.assumed_model,
-            n_states=2,
-            measured=[0],
-            noise_variance=0.01,
-            error_states=[1],
             feature_library=PowerLibrary(),
-            feature_names=["x1", "x2"],
             validation=(check.y, check.t),
         )
     notes = [w for w in res.warnings if "misses the validation record" in w]

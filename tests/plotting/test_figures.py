@@ -15,7 +15,9 @@ import pytest
 matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")
 
-from pysindy_mme import PowerLibrary, discover  # noqa: E402
+from paper_case import DATA, VDP, paper_discover  # noqa: E402
+
+from pysindy_mme import PowerLibrary  # noqa: E402
 from pysindy_mme.core.tables import sig  # noqa: E402
 from pysindy_mme.discovery.gain import Gain  # noqa: E402
 from pysindy_mme.optimizers.selection import Step  # noqa: E402
@@ -28,29 +30,18 @@ from pysindy_mme.plotting import (  # noqa: E402
     states_figure,
 )
 from pysindy_mme.plotting._base import LABEL, pyplot  # noqa: E402
-from pysindy_mme.systems import van_der_pol  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def study():
-    system = van_der_pol()
-    data = system.measure(0)
-    check = system.measure(1, x0=(2.0, -1.0))
+    check = VDP.measure(1, x0=(2.0, -1.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(
-            data.y,
-            data.t,
-            assumed_model=system.assumed_model,
-            n_states=2,
-            measured=[0],
-            noise_variance=0.01,
-            error_states=[1],
+        res = paper_discover(
             feature_library=ps.PolynomialLibrary(degree=3),
-            feature_names=["x1", "x2"],
             validation=(check.y, check.t),
         )
-    return res, data
+    return res, DATA
 
 
 @pytest.fixture(autouse=True)
