@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core.tables import sig
 
-__all__ = ["doubt_notes", "generalisation_note"]
+__all__ = ["doubt_notes", "generalisation_note", "stop_reason"]
 
 # A 95 % interval that reaches within half the value of zero: 1.96 * se > |v| / 2.
 WEAK_RELATIVE_SE = 0.25
@@ -107,10 +107,23 @@ def generalisation_note(gain, names, channel_names) -> str | None:
     )
 
 
+def stop_reason(fit) -> str:
+    """Why a fit stopped, worded so that it never contradicts ``converged``.
+
+    The solver may call its own iteration converged while the fit is not
+    (a trial step blew the model up, the intervals do not join): the text
+    then says the iteration *stopped*, not that it converged.
+    """
+    message = str(fit.message)
+    if not fit.converged and message.startswith("converged"):
+        message = "the iteration stopped" + message[len("converged") :]
+    return message
+
+
 def _not_converged(fit, names, rel, undetermined, pairs) -> str:
     text = (
         "the output-error refit of the extended model did not converge "
-        f"({fit.message}); its coefficients may be inaccurate"
+        f"({stop_reason(fit)}); its coefficients may be inaccurate"
     )
     doubtful = np.isfinite(rel) & ~undetermined
     if doubtful.any():

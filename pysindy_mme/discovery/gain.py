@@ -1,19 +1,23 @@
 """Step 5: the gain - how much closer to the measurements the fix simulates.
 
-Two numbers per measured channel, both simulation RMSEs against the data:
+Every number is a **free run** of the model as printed, from its fitted
+initial state, against the data:
 
-* **in-sample** (the fitting record): each model's output-error fit, i.e.
-  its simulation from its own fitted initial state (and parameters). It is
-  labelled in-sample in every report: the extended model's terms were
-  chosen on this record.
-* **out-of-sample** (a validation record, when given), by the protocol the
-  system-identification benchmarks use: the initial state is estimated from
-  a short leading window only (``validation_window`` samples, default 50:
-  an output-error fit of the initial state on the window), then the model
-  runs free over the whole record, and the RMSE is taken over the samples
-  after the window. A model whose free run leaves the finite range (or a
-  bound of 1e6 times the data's scale) has no RMSE: the gain says where it
-  diverged instead of averaging over the rows that stayed finite.
+* **in-sample** (the fitting record): each model run free over the whole
+  record from the initial state (and parameters) of its output-error fit.
+  A fit that did not converge still gets a true simulation here (never the
+  RMSE of fitted trajectory pieces that do not join), and is marked as not
+  converged wherever its numbers appear. The extended model's terms were
+  chosen on this record: in-sample numbers flatter it.
+* **out-of-sample**: a validation record when given, else a stretch held
+  out of the fitting record (both models refitted without it), by the
+  protocol the system-identification benchmarks use: the initial state is
+  estimated from a short leading window only (``validation_window``
+  samples: an output-error fit of the initial state on the window), then
+  the model runs free over the whole record, and the RMSE is taken over the
+  samples after the window. A model whose free run leaves the finite range
+  (or a bound of 1e6 times the data's scale) has no RMSE: the gain says
+  where it diverged instead of averaging over the rows that stayed finite.
 """
 
 from __future__ import annotations
@@ -70,11 +74,13 @@ class FreeRun:
 class Gain:
     """How much closer to the measurements the extended model simulates.
 
-    RMSE per measured channel of the simulated measurement against the data:
-    in-sample on the fitting record (each model's own output-error fit), and
-    out-of-sample on the validation record (initial state from the leading
-    ``validation_window`` samples, then free simulation; RMSE after the
-    window). ``noise_floor = sqrt(R_jj)`` is what a perfect model reaches.
+    RMSE per measured channel of the simulated measurement against the data,
+    every one a free run (module docstring): in-sample on the fitting record
+    (from each fit's initial state), and out-of-sample on the validation
+    record or a held-out stretch (``validation_source``; initial state from
+    the leading ``validation_window`` samples, then free simulation; RMSE
+    after the window). ``noise_floor = sqrt(R_jj)`` is what a perfect model
+    reaches.
     """
 
     channel_names: list
@@ -87,6 +93,15 @@ class Gain:
     notes: list = field(default_factory=list)
     #: the validation free runs, ``{"assumed": FreeRun, "extended": FreeRun}``
     validation_runs: dict | None = None
+    #: the in-sample free runs, ``{"assumed": FreeRun, "extended": FreeRun}``
+    in_sample_runs: dict | None = None
+    #: whether each model's fit to the record converged
+    converged: dict = field(default_factory=dict)
+    #: where the out-of-sample numbers come from ("the validation record" or
+    #: a held-out stretch of the fitting record, described)
+    validation_source: str | None = None
+    #: whether the refits without the held-out stretch converged
+    held_out_converged: bool = True
 
     @property
     def ratio(self) -> np.ndarray:
@@ -109,12 +124,15 @@ class Gain:
             "ratio": plain(self.ratio),
             "noise_floor": plain(self.noise_floor),
             "in_sample": True,
+            "free_run": True,
+            "converged": dict(self.converged),
         }
         if self.validation_rmse_assumed is not None:
             out["validation_rmse_assumed"] = plain(self.validation_rmse_assumed)
             out["validation_rmse_extended"] = plain(self.validation_rmse_extended)
             out["validation_ratio"] = plain(self.validation_ratio)
             out["validation_window"] = self.validation_window
+            out["validation_source"] = self.validation_source
         out["notes"] = list(self.notes)
         return out
 

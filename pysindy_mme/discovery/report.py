@@ -17,17 +17,27 @@ __all__ = ["format_discovery"]
 def _header(res) -> list:
     t = res.t
     noise = ", ".join(sig(v, 3) for v in np.diag(res.noise_cov))
+    source = getattr(res.study, "noise_description", "") or "stated by the user"
     inputs = f"; inputs: {', '.join(res.input_names)}" if res.input_names else ""
-    return [
+    out = [
         "pysindy-mme discovery report",
         "=" * 28,
         f"Data: {t.size} samples over t = {sig(t[0])} .. {sig(t[-1])}; measured: "
         f"{', '.join(res.channel_names)}; states: {', '.join(res.state_names)}"
         + inputs,
-        f"Measurement noise variance: {noise}",
-        f"Verdict: {res.verdict}.",
-        "",
+        f"Measurement noise variance: {noise} ({source})",
     ]
+    placement = getattr(res.study, "error_states_note", "")
+    if placement:
+        out.append(f"Model error placed on: {placement}")
+    out += [f"Conclusion: {res.conclusion}", f"Verdict: {res.verdict}."]
+    if res.reasons:
+        out.append("Why:")
+        out += [f"- {r}" for r in res.reasons]
+    if res.advice:
+        out.append("What to try:")
+        out += [f"- {a}" for a in res.advice]
+    return out + [""]
 
 
 def _what_is_wrong(res) -> list:
@@ -55,8 +65,10 @@ def _what_is_wrong(res) -> list:
                 f"{signed(r[worst], 3)} at t = {sig(res.t[worst], 3)}",
             ]
         )
+    converged = "" if res.assumed.fit.converged else " (its fit did NOT converge)"
     out.append(
-        "Simulation of the assumed model (initial state fitted) against the data:"
+        "Free run of the assumed model from its fitted initial state against the "
+        f"data{converged}:"
     )
     out.append(
         text_table(["channel", "RMSE", "noise", "RMSE/noise", "largest error"], rows)
@@ -69,8 +81,9 @@ def _what_is_wrong(res) -> list:
     )
     out.append(
         f"Consistency test: chi2 = {sig(res.consistency_chi2)} on "
-        f"{res.consistency_dof} dof, p = {p_value(res.consistency_p_value)} -> "
-        f"{verdict} (alpha = {res.alpha})."
+        f"{res.consistency_dof} dof ({res.assumed.fit.n_residuals} residuals less "
+        f"{res.study.n_states} initial states), "
+        f"p = {p_value(res.consistency_p_value)} -> {verdict} (alpha = {res.alpha})."
     )
     ratio = ", ".join(sig(v, 4) for v in np.atleast_1d(res.mme.covariance_ratio_))
     w = np.asarray(res.mme.W_, dtype=float)
@@ -154,6 +167,8 @@ def _cause(res) -> list:
                 f"{state}': no library term explains the misfit - the library lacks "
                 "the effect."
             )
+        elif contradicted:
+            out.append(f"{state}': no term kept in this equation.")
         else:
             out.append(
                 f"{state}': no significant correction - the assumed equation is "
@@ -239,16 +254,23 @@ def _gain(res) -> list:
     header = ["channel", "RMSE assumed", "RMSE extended", "gain (in-sample)", "noise"]
     if validation:
         header += ["valid. assumed", "valid. extended", "valid. gain"]
-    out.append("Simulation RMSE against the measurements (noise = a perfect model):")
+    out.append("Free-run RMSE against the measurements (noise = a perfect model):")
     out.append(text_table(header, rows))
     out.append(
-        "In-sample: each model fitted to this record (the extended model's terms "
-        "were chosen on it)."
+        "In-sample: each model run free over this record from the initial state "
+        "of its fit to it (the extended model's terms were chosen on it)."
     )
-    if validation:
+    unconverged = [name for name, ok in g.converged.items() if not ok]
+    if unconverged:
         out.append(
-            f"Validation: initial state from the first {g.validation_window} samples "
-            "of the validation record, then a free run; RMSE over the rest."
+            f"NOT CONVERGED: the fit of the {' and the '.join(unconverged)} model "
+            "did not converge; its numbers are a free run of an unsettled fit."
+        )
+    if validation:
+        source = g.validation_source or "the validation record"
+        out.append(
+            f"Out of sample ('valid.'): {source}; initial state from its first "
+            f"{g.validation_window} samples, then a free run; RMSE over the rest."
         )
     return out
 

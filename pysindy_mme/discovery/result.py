@@ -118,9 +118,18 @@ class Discovery:
         The fitted estimator (``smoothed_x_``, ``d_``, ``W_``, ...).
     optimizer : fitted optimizer
         The regression of ``d`` (``anova_``, ``steps_``, ``summary()``).
+    conclusion : str
+        One of ``"explained"``, ``"partly explained"``, ``"not explained"``,
+        ``"consistent"``, ``"inconclusive"``, derived from the evidence (see
+        :mod:`pysindy_mme.discovery.conclusion` for what each requires).
     verdict : str
-        One sentence that the consistency test, the correction test and the
-        report agree on.
+        The conclusion as one sentence (the report's first lines).
+    reasons : list of str
+        Why: each a short sentence naming the number that decided it.
+    advice : list of str
+        What to try when the conclusion is short of "explained".
+    trade_offs : list of TradeOff
+        Combinations of fitted quantities the data do not determine.
     warnings : list of str
     """
 
@@ -137,6 +146,10 @@ class Discovery:
     warnings: list = field(default_factory=list)
     extended_fit: object | None = None
     substeps: int = 1
+    conclusion: str = "inconclusive"
+    reasons: list = field(default_factory=list)
+    advice: list = field(default_factory=list)
+    trade_offs: list = field(default_factory=list)
 
     # ----------------------------------------------------- read off the steps
     t = property(lambda self: self.study.t)
@@ -155,16 +168,20 @@ class Discovery:
     library_feature_names = property(lambda self: self.proposals.feature_names)
     regression_coef = property(lambda self: self.proposals.coefficients)
     assumed_fit = property(lambda self: self.assumed.fit)
-    assumed_simulation = property(lambda self: self.assumed.fit.x)
     consistency_chi2 = property(lambda self: self.assumed.chi2)
     consistency_dof = property(lambda self: self.assumed.dof)
     consistency_p_value = property(lambda self: self.assumed.p_value)
     correction_p_value = property(lambda self: self.confirmation.correction_p_value)
 
     @property
+    def assumed_simulation(self) -> np.ndarray:
+        """The assumed model's free run from its fitted initial state."""
+        return self.gain.in_sample_runs["assumed"].x
+
+    @property
     def extended_simulation(self) -> np.ndarray:
-        fit = self.extended_fit
-        return self.assumed.fit.x if fit is None else fit.x
+        """The extended model's free run from its fitted initial state."""
+        return self.gain.in_sample_runs["extended"].x
 
     @property
     def parameters(self) -> dict:
@@ -205,7 +222,13 @@ class Discovery:
             i, c = slot
             return f"{self.state_names[i]}: {self.proposals.name(c)}"
 
-        return [f"{describe(s)} ({why})" for s, why in self.confirmation.rejected]
+        # a term tried, dropped and taken back later is in the model, not "not kept"
+        kept = set(self.confirmation.slots)
+        return [
+            f"{describe(s)} ({why})"
+            for s, why in self.confirmation.rejected
+            if tuple(s) not in kept
+        ]
 
     def validate(self, y, t, u=None, window: int | None = None) -> dict:
         """Both models on another record, by the benchmarks' free-run protocol.
@@ -304,7 +327,11 @@ class Discovery:
                 }
                 for te in self.term_estimates
             ],
+            "conclusion": self.conclusion,
             "verdict": self.verdict,
+            "reasons": list(self.reasons),
+            "advice": list(self.advice),
+            "trade_offs": [str(t) for t in self.trade_offs],
             "parameters": {
                 k: {
                     f: (plain(v) if isinstance(v, float) else v)

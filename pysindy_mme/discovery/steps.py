@@ -26,7 +26,8 @@ from ..core.integrate import InputSignal
 from ..core.model import ParametricModel, rowwise_jacobian
 from ..core.tables import sig
 from .confirm import Confirmation, confirm_terms
-from .gain import Gain, free_run, rmse
+from .doubts import stop_reason
+from .gain import FreeRun, Gain, free_run
 from .output_error import OutputErrorFit, OutputErrorModel
 
 __all__ = [
@@ -42,6 +43,9 @@ __all__ = [
     "rk4_substeps",
     "step_size_check",
     "validation_runs",
+    "in_sample_run",
+    "held_out_runs",
+    "held_out_split",
 ]
 
 
@@ -154,7 +158,7 @@ def _assumed_fit(study, fit, substeps, notes=()) -> AssumedFit:
     if not fit.converged:
         notes.append(
             "the output-error fit of the assumed model did not converge "
-            f"({fit.message})"
+            f"({stop_reason(fit)})"
         )
     dof = max(fit.n_residuals - study.n_states, 1)
     p = float(stats.chi2.sf(fit.cost, dof)) if np.isfinite(fit.cost) else 0.0
@@ -353,33 +357,142 @@ def _moved_most(before, after, se, names, shown=3) -> str:
 
 
 def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
-    """Step 5: in-sample RMSE of both fits; out-of-sample free runs.
+    """Step 5: free runs of both models, in sample and on held-out data.
 
     ``fits``: ``{"assumed": OutputErrorFit, "extended": OutputErrorFit}``;
-    ``models``: the same keys, ``(x, t, u) -> dx/dt`` row-wise.
+    ``models``: the same keys, ``(x, t, u) -> dx/dt`` row-wise, the models
+    as printed. Every RMSE is a free run of the model from its fitted
+    initial state (never the fit's own trajectory, whose intervals need not
+    join when the fit did not converge). Out of sample: the validation
+    record when given, else a held-out stretch (:func:`held_out_runs`).
     """
-    measure = _measure(study)
-    a, e = fits["assumed"], fits["extended"]
+    runs = {
+        name: in_sample_run(study, fits[name], models[name], substeps)
+        for name in ("assumed", "extended")
+    }
     gain = Gain(
         channel_names=study.channel_names,
-        rmse_assumed=rmse(study.y, measure(a.x) + _offsets(study, a)),
-        rmse_extended=rmse(study.y, measure(e.x) + _offsets(study, e)),
+        rmse_assumed=runs["assumed"].rmse,
+        rmse_extended=runs["extended"].rmse,
         noise_floor=np.sqrt(np.diag(study.noise_cov)),
+        in_sample_runs=runs,
+        converged={name: bool(fits[name].converged) for name in runs},
     )
-    if study.validation is None:
-        return gain
-    runs = validation_runs(study, models, features, substeps)
-    gain.validation_runs = runs
-    gain.validation_rmse_assumed = runs["assumed"].rmse
-    gain.validation_rmse_extended = runs["extended"].rmse
-    gain.validation_window = study.validation_window
     for name, run in runs.items():
         if run.diverged_at is not None:
             gain.notes.append(
-                f"the {name} model's free run on the validation record diverged at "
-                f"t = {run.diverged_at:.6g}: it has no validation RMSE"
+                f"the {name} model's free run from its fitted initial state "
+                f"diverged at t = {run.diverged_at:.6g}: it has no in-sample RMSE"
             )
+    if study.validation is None:
+        return gain
+    runs = validation_runs(study, models, features, substeps)
+    _set_out_of_sample(gain, runs, study.validation_window, "the validation record")
     return gain
+
+
+def _set_out_of_sample(gain, runs, window, source) -> None:
+    gain.validation_runs = runs
+    gain.validation_rmse_assumed = runs["assumed"].rmse
+    gain.validation_rmse_extended = runs["extended"].rmse
+    gain.validation_window = window
+    gain.validation_source = source
+    for name, run in runs.items():
+        if run.diverged_at is not None:
+            gain.notes.append(
+                f"the {name} model's free run on {source} diverged at "
+                f"t = {run.diverged_at:.6g}: it has no out-of-sample RMSE"
+            )
+
+
+def in_sample_run(study, fit, model, substeps) -> FreeRun:
+    """The free run of ``model`` from ``fit``'s initial state over the record.
+
+    Offsets (``offsets=True``) are the fit's; the RMSE is over every
+    observed sample. The fit's trajectory is only the guess Newton's method
+    starts from: the answer is the model's own simulation.
+    """
+    measure = _measure(study)
+    offsets = _offsets(study, fit)
+
+    def shifted(x):
+        return measure(x) + offsets
+
+    guess = np.where(np.isfinite(fit.x), fit.x, 0.0)
+    return free_run(
+        model, fit.x[0], study.t, study.inputs, substeps, shifted, study.y, 0, guess
+    )
+
+
+#: share of the fitting record held out when no validation record is given
+HELD_OUT_FRACTION = 0.2
+#: fewest samples of a held-out stretch beyond the initial-state window
+MIN_HELD_OUT = 30
+
+
+def held_out_split(study) -> tuple | None:
+    """``(start, stop)`` of the trailing stretch to hold out, or None.
+
+    The last ``HELD_OUT_FRACTION`` of the record (at least the validation
+    window plus ``MIN_HELD_OUT`` samples), when what is left for fitting
+    keeps at least four times as many samples.
+    """
+    n = study.t.size
+    window = min(study.validation_window, max(2, n // 20))
+    size = max(int(round(HELD_OUT_FRACTION * n)), window + MIN_HELD_OUT)
+    if n - size < 4 * size or size - window < MIN_HELD_OUT:
+        return None
+    return n - size, n
+
+
+def held_out_runs(study, fits: dict, build_extended, features, substeps):
+    """Both models refitted without a held-out stretch, then run free on it.
+
+    The structure (the kept terms) is the study's; the parameters,
+    coefficients and initial states are refitted on the rest of the record
+    only, so the stretch is never used for fitting. Returns ``(runs,
+    source, window)`` or None when the record is too short to spare one.
+    ``build_extended(fit) -> model`` makes the printed model of a fit.
+    """
+    from dataclasses import replace
+
+    split = held_out_split(study)
+    if split is None:
+        return None
+    start, stop = split
+    window = min(study.validation_window, max(2, (stop - start) // 5))
+    u = study.u
+    head = replace(
+        study,
+        y=study.y[:start],
+        t=study.t[:start],
+        u=None if u is None else u[:start],
+        inputs=study.inputs.subset(0, start),
+        x_init=study.x_init[:start],
+        validation_window=window,
+    )
+    engine = output_error_engine(head, features, substeps)
+    a, e = fits["assumed"], fits["extended"]
+    refit_a = engine.fit((), a.theta, a.x[:start])
+    refit_e = engine.fit(e.slots, e.theta, e.x[:start]) if e.slots else refit_a
+    models = {
+        "assumed": study.model_at(refit_a.physical),
+        "extended": build_extended(refit_e) if e.slots else None,
+    }
+    if models["extended"] is None:
+        models["extended"] = models["assumed"]
+    record = (
+        study.y[start:],
+        study.t[start:],
+        None if u is None else u[start:],
+    )
+    runs = validation_runs(head, models, features, substeps, record)
+    source = (
+        f"a held-out stretch (t = {sig(study.t[start])} .. {sig(study.t[-1])}, "
+        f"the last {stop - start} samples; both models refitted without it)"
+    )
+    converged = refit_a.converged and refit_e.converged
+    return runs, source, window, converged
 
 
 def _offsets(study, fit):

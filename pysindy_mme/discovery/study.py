@@ -11,19 +11,24 @@ import warnings
 import numpy as np
 
 from ..core.progress import Progress
-from ..core.tables import sig
+from ..core.tables import p_value, sig
 from ..exceptions import DiscoveryWarning
+from .conclusion import RUNAWAY_FACTOR, TRADE_OFF_CORRELATION, Evidence, conclude
+from .confirm import Confirmation
 from .doubts import doubt_notes, generalisation_note
 from .extended import ExtendedModel
+from .identifiability import exact_trade_offs
 from .inputs import check_study
 from .propose import propose_terms
 from .result import Discovery, TermEstimate
 from .statistics import residual_inflation
 from .steps import (
+    _set_out_of_sample,
     baseline,
     confirm_on_measurements,
     estimate_model_error,
     fit_assumed_model,
+    held_out_runs,
     measure_gain,
     output_error_engine,
     rk4_substeps,
@@ -172,9 +177,18 @@ def run_study(study, progress: Progress) -> Discovery:
     fits = {"assumed": assumed.fit, "extended": extended_fit}
     models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
+    if study.validation is None and confirmation.slots:
+        _hold_out(study, gain, fits, proposals, confirmation, estimate.x, substeps)
     progress.stage("5. gain measured")
     notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
     terms, estimates = _terms(study, proposals, confirmation)
+    names = _quantity_names(study, proposals, extended_fit)
+    trade_offs = exact_trade_offs(
+        engine, extended_fit, names, study.state_names, study.measured
+    )
+    conclusion = conclude(
+        _evidence(study, assumed, confirmation, gain, names, trade_offs)
+    )
     for note in notes:
         warnings.warn(note, DiscoveryWarning, stacklevel=3)
     return Discovery(
@@ -187,11 +201,120 @@ def run_study(study, progress: Progress) -> Discovery:
         extended_model=extended,
         terms=terms,
         term_estimates=estimates,
-        verdict=_verdict(study, assumed, confirmation),
+        verdict=conclusion.verdict,
         warnings=notes,
         extended_fit=confirmation.fit,
         substeps=substeps,
+        conclusion=conclusion.label,
+        reasons=list(conclusion.reasons),
+        advice=list(conclusion.advice),
+        trade_offs=trade_offs,
     )
+
+
+def _hold_out(study, gain, fits, proposals, confirmation, x_hat, substeps) -> None:
+    """Out-of-sample numbers from a held-out stretch (no validation record)."""
+
+    def build(fit):
+        slots = Confirmation(list(confirmation.slots), fit)
+        return _extended_model(study, proposals, slots, fit, x_hat)
+
+    held = held_out_runs(study, fits, build, proposals.evaluate, substeps)
+    if held is None:
+        return
+    runs, source, window, converged = held
+    _set_out_of_sample(gain, runs, window, source)
+    gain.held_out_converged = bool(converged)
+
+
+def _quantity_names(study, proposals, fit) -> list:
+    """A name per entry of ``fit.theta``: parameters, terms, offsets."""
+    names = list(study.parameter_names)
+    names += [f"{proposals.name(c)} in {study.state_names[i]}'" for i, c in fit.slots]
+    if study.offsets:
+        names += [f"offset of {name}" for name in study.channel_names]
+    return names
+
+
+def _evidence(study, assumed, confirmation, gain, names, trade_offs) -> Evidence:
+    fit = confirmation.fit or assumed.fit
+    noise = getattr(study, "noise_doubt", None)
+    k0 = len(study.parameter_names)
+    return Evidence(
+        contradicted=bool(assumed.p_value < study.alpha),
+        consistency=(
+            f"the assumed model's chi2 = {sig(assumed.chi2)} on {assumed.dof} "
+            f"residual dof, p = {p_value(assumed.p_value)} (alpha = {study.alpha})"
+        ),
+        terms=names[k0 : k0 + len(confirmation.slots)],
+        assumed_converged=bool(assumed.fit.converged),
+        extended_converged=bool(confirmation.fit is None or confirmation.fit.converged),
+        rmse_assumed=np.asarray(gain.rmse_assumed, float),
+        rmse_extended=np.asarray(gain.rmse_extended, float),
+        noise_floor=np.asarray(gain.noise_floor, float),
+        channel_names=list(study.channel_names),
+        out_assumed=gain.validation_rmse_assumed,
+        out_extended=gain.validation_rmse_extended,
+        out_source=gain.validation_source,
+        out_converged=bool(gain.held_out_converged),
+        unidentified=[str(t) for t in trade_offs] + _undetermined(fit, names),
+        parameters=_parameter_doubts(study, fit),
+        noise_doubt=noise,
+    )
+
+
+def _undetermined(fit, names) -> list:
+    """Kept quantities the data do not pin down: an undefined or larger-than-
+    the-value standard error, or estimates correlated beyond the limit."""
+    k = min(len(names), fit.theta.size)
+    if k == 0:
+        return []
+    theta = np.asarray(fit.theta[:k], float)
+    cov = np.asarray(fit.covariance[:k, :k], float)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    out = []
+    for j in range(k):
+        if not np.isfinite(se[j]) or se[j] == 0.0:
+            out.append(f"{names[j]} is not determined by the data (no standard error)")
+        elif se[j] > abs(theta[j]):
+            out.append(
+                f"{names[j]} = {sig(theta[j])} has a standard error larger than its "
+                f"value ({sig(se[j])})"
+            )
+    ok = np.flatnonzero(np.isfinite(se) & (se > 0))
+    for a_i, a in enumerate(ok):
+        for b in ok[a_i + 1 :]:
+            r = cov[a, b] / (se[a] * se[b])
+            if abs(r) > TRADE_OFF_CORRELATION:
+                out.append(
+                    f"{names[a]} and {names[b]} trade off (correlation of their "
+                    f"estimates {r:+.4f})"
+                )
+    return out
+
+
+def _parameter_doubts(study, fit) -> list:
+    """Grey-box parameters that ran away from the guess or sit on a bound."""
+    out = []
+    at_bound = getattr(fit, "at_bound", None)
+    for k, name in enumerate(study.parameter_names):
+        guess, value = float(study.parameter_init[k]), float(fit.physical[k])
+        if at_bound is not None and k < len(at_bound) and at_bound[k]:
+            out.append(f"{name} = {sig(value)} sits on its bound")
+            continue
+        if guess == 0.0 or not np.isfinite(value):
+            continue
+        ratio = value / guess
+        if ratio < 0:
+            out.append(
+                f"{name} changed sign: {sig(guess)} guessed, {sig(value)} fitted"
+            )
+        elif ratio > RUNAWAY_FACTOR or ratio < 1.0 / RUNAWAY_FACTOR:
+            out.append(
+                f"{name} moved from the guess {sig(guess)} to {sig(value)} "
+                f"({sig(ratio, 3)}x): it has most likely absorbed a missing effect"
+            )
+    return out
 
 
 def _substeps(study, assumed, proposals, x_hat) -> int:
@@ -214,10 +337,12 @@ def _substeps(study, assumed, proposals, x_hat) -> int:
 
 
 def _extended_model(study, proposals, confirmation, fit, x_hat) -> ExtendedModel:
+    """The model as printed: the assumed model at ``fit``'s parameters plus
+    ``confirmation.slots`` with ``fit``'s coefficients."""
     n_lib = len(proposals.feature_names)
     coef = np.zeros((study.n_states, n_lib))
     intercept = np.zeros(study.n_states)
-    values = [] if confirmation.fit is None else confirmation.fit.coefficients
+    values = [] if confirmation.fit is None else fit.coefficients
     for (i, c), v in zip(confirmation.slots, values):
         if c == proposals.constant_column:
             intercept[i] = v
@@ -316,12 +441,14 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
             notes.append(general)
         from scipy import stats
 
-        p_fit = float(stats.chi2.sf(fit.cost, fit.dof))
+        # with correlated residuals the cost and the count shrink together
+        p_fit = float(stats.chi2.sf(fit.cost / fit.inflation, fit.dof))
         if p_fit < study.alpha:
             notes.append(
                 "the extended model still does not fit the data to the noise level "
-                f"(chi2 = {sig(fit.cost)} on {sig(fit.dof, 5)} dof, "
-                f"p = {p_fit:.2g}): the library may lack the missing effect, the "
+                f"(chi2 = {sig(fit.cost)} over {fit.n_residuals} residuals"
+                f"{_effective(fit)}, p = {p_fit:.2g}): the library may lack the "
+                "missing effect, the "
                 "noise variance may be too small, or the search stopped in a local "
                 "optimum"
             )
@@ -333,6 +460,18 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
         for c in sorted(used & set(proposals.nonsmooth)):
             notes.append(f"{proposals.name(c)} is {proposals.nonsmooth[c]}")
     return notes
+
+
+def _effective(fit) -> str:
+    """The test's degrees of freedom, and why they differ from the count."""
+    plain = fit.n_residuals - fit.n_free
+    if abs(fit.dof - plain) < 0.5:
+        return f", {sig(fit.dof, 6)} dof"
+    return (
+        f"; the residuals are correlated ({sig(fit.inflation, 3)} residuals per "
+        f"independent one), so tested as {sig(fit.cost / fit.inflation)} on "
+        f"{sig(fit.dof, 5)} effective dof"
+    )
 
 
 def _noise_sanity(study, fit) -> list:
@@ -349,17 +488,3 @@ def _noise_sanity(study, fit) -> list:
         "variance (noise_variance is the variance, sd squared), or did an 'auto' "
         "estimate take signal for noise? Tests and intervals assume the stated noise"
     ]
-
-
-def _verdict(study, assumed, confirmation) -> str:
-    """One sentence the consistency test and the correction test agree on."""
-    contradicted = assumed.p_value < study.alpha
-    if confirmation.slots:
-        return "the data contradict the assumed model; the identified terms explain it"
-    if contradicted:
-        return (
-            "the data contradict the assumed model, but no library term explains "
-            "it: the library lacks the effect (try other functions, inputs, or "
-            "check the noise variance and the model's parameters)"
-        )
-    return "the data are consistent with the assumed model: no correction needed"

@@ -20,6 +20,7 @@ from oscillator_case import oscillator, record, study
 
 from pysindy_mme import DivergenceError
 from pysindy_mme.core.model import simulate_model
+from pysindy_mme.discovery.conclusion import CONCLUSIONS
 from pysindy_mme.systems import van_der_pol
 
 
@@ -277,14 +278,23 @@ def test_adversarial_study_reports_only_what_it_can_stand_behind(case, results):
     for te in res.term_estimates:
         assert not te.std_error == 0.0
         assert np.isnan(te.std_error) or te.ci_low < te.ci_high
-    # one verdict: the text and the tests agree
+    # one conclusion: the label, the sentence and the tests agree
     contradicted = res.consistency_p_value < res.alpha
-    if res.found_correction:
-        assert "identified terms explain it" in res.verdict
-    elif contradicted:
-        assert "no library term explains" in res.verdict
-    else:
+    assert res.conclusion in CONCLUSIONS
+    assert res.reasons, "a conclusion always says why"
+    if res.conclusion in ("explained", "partly explained"):
+        assert res.found_correction and contradicted
+        assert "identified terms explain" in res.verdict
+    elif res.conclusion == "not explained":
+        assert contradicted
+        if not res.found_correction:
+            assert "no library term explains" in res.verdict
+    elif res.conclusion == "consistent":
+        assert not contradicted and not res.found_correction
         assert "consistent with the assumed model" in res.verdict
+    else:
+        assert res.verdict.startswith("inconclusive")
+    assert f"Conclusion: {res.conclusion}" in text
     assert "CONTRADICT" not in text or contradicted
 
 

@@ -1,0 +1,325 @@
+"""The study's conclusion, derived from the evidence and stated with its reasons.
+
+A scientist acts on the verdict, so the verdict is never more confident
+than the evidence. One of five conclusions:
+
+``"explained"``
+    The data contradict the assumed model and the identified terms explain
+    it. All of: every refit converged; the gains are free runs of the
+    models as printed; on held-out data (the validation record, or a
+    stretch of the fitting record refitted without it) the extended model
+    simulates at least ``HELD_OUT_MARGIN`` (1.1) times closer to the data
+    than the assumed model (noise-weighted RMSE over the channels, no
+    channel worse by that factor); the extended model's free run fits its
+    record within ``FIT_FACTOR`` (1.5) times the noise on every channel;
+    no kept term or parameter is unidentified (an exact trade-off, a
+    correlation of estimates beyond ``TRADE_OFF_CORRELATION`` (0.995), a
+    standard error larger than the value); no parameter ran away (moved by
+    more than ``RUNAWAY_FACTOR`` (10) times from its guess, or changed sign)
+    or sits on a bound; the noise level is known.
+``"partly explained"``
+    As "explained", except that the extended model still misses its record
+    by more than ``FIT_FACTOR`` times the noise: the misfit left is named.
+``"not explained"``
+    The data contradict the assumed model, and either no library term
+    explains it, or the terms found are worse on held-out data than the
+    assumed model (by ``HELD_OUT_MARGIN``).
+``"consistent"``
+    The data do not contradict the assumed model (chi-square test at
+    ``alpha``) and no term was kept.
+``"inconclusive"``
+    Anything short of the above: the reasons say what is missing and what
+    to try.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.tables import sig
+
+__all__ = [
+    "CONCLUSIONS",
+    "Conclusion",
+    "Evidence",
+    "conclude",
+    "FIT_FACTOR",
+    "HELD_OUT_MARGIN",
+    "RUNAWAY_FACTOR",
+    "TRADE_OFF_CORRELATION",
+]
+
+CONCLUSIONS = (
+    "explained",
+    "partly explained",
+    "not explained",
+    "consistent",
+    "inconclusive",
+)
+#: the held-out gain an explanation needs: 10 % closer to the data than the
+#: assumed model (smaller differences are within what refitting on a
+#: shorter record and a different initial state move a free run)
+HELD_OUT_MARGIN = 1.1
+#: an explanation fits its record to within this factor of the noise sd
+FIT_FACTOR = 1.5
+#: a parameter that moves by more than this factor from the user's guess has
+#: most likely absorbed a missing effect (or the guess was a slip)
+RUNAWAY_FACTOR = 10.0
+#: estimates this correlated are not told apart by the data
+TRADE_OFF_CORRELATION = 0.995
+
+
+@dataclass(frozen=True)
+class Conclusion:
+    """``label`` (one of :data:`CONCLUSIONS`), the sentence, reasons, advice."""
+
+    label: str
+    verdict: str
+    reasons: tuple
+    advice: tuple = ()
+
+
+@dataclass
+class Evidence:
+    """What the conclusion is derived from (all numbers already measured).
+
+    Attributes
+    ----------
+    contradicted : bool
+        The assumed model's chi-square test rejects it at ``alpha``.
+    consistency : str
+        The test as text (``"chi2 = 812 on 398 dof, p = 1e-30"``).
+    terms : list of str
+        Kept terms (``"theta in omega'"``).
+    assumed_converged, extended_converged : bool
+    rmse_assumed, rmse_extended, noise_floor : ndarray (m,)
+        In-sample free runs.
+    out_assumed, out_extended : ndarray (m,) or None
+        Out-of-sample free runs; ``out_source`` says on what.
+    out_converged : bool
+        The refits the out-of-sample runs come from converged.
+    unidentified : list of str
+        Sentences naming undetermined quantities.
+    parameters : list of str
+        Sentences naming runaway or bounded parameters.
+    noise_doubt : str or None
+        Why the noise level is not known, if it is not.
+    """
+
+    contradicted: bool
+    consistency: str
+    terms: list
+    assumed_converged: bool
+    extended_converged: bool
+    rmse_assumed: np.ndarray
+    rmse_extended: np.ndarray
+    noise_floor: np.ndarray
+    channel_names: list
+    out_assumed: np.ndarray | None = None
+    out_extended: np.ndarray | None = None
+    out_source: str | None = None
+    out_converged: bool = True
+    unidentified: list = field(default_factory=list)
+    parameters: list = field(default_factory=list)
+    noise_doubt: str | None = None
+
+
+def combined(rmse, floor) -> float:
+    """Noise-weighted RMSE over channels: ``sqrt(mean((rmse / floor)^2))``."""
+    rmse, floor = np.asarray(rmse, float), np.asarray(floor, float)
+    with np.errstate(all="ignore"):
+        return float(np.sqrt(np.mean((rmse / floor) ** 2)))
+
+
+def conclude(ev: Evidence) -> Conclusion:
+    """The conclusion the evidence supports (module docstring)."""
+    if not ev.terms:
+        return _without_terms(ev)
+    return _with_terms(ev)
+
+
+def _without_terms(ev: Evidence) -> Conclusion:
+    reasons = [f"no library term improved the fit significantly; {ev.consistency}"]
+    advice = []
+    doubts = list(ev.unidentified) + list(ev.parameters)
+    if not ev.assumed_converged:
+        reasons.insert(0, "the output-error fit of the assumed model did not converge")
+        return _inconclusive(reasons + doubts, advice + [_TRY["converge"]])
+    if ev.noise_doubt:
+        reasons.insert(0, ev.noise_doubt)
+        return _inconclusive(reasons + doubts, [_TRY["noise"]])
+    if ev.contradicted:
+        verdict = (
+            "the data contradict the assumed model, but no library term explains "
+            "it: the library lacks the effect (try other functions, inputs, or "
+            "check the noise variance and the model's parameters)"
+        )
+        return Conclusion(
+            "not explained", verdict, tuple(reasons + doubts), (_TRY["library"],)
+        )
+    verdict = "the data are consistent with the assumed model: no correction needed"
+    return Conclusion("consistent", verdict, tuple(reasons + doubts))
+
+
+def _with_terms(ev: Evidence) -> Conclusion:
+    terms = _short(ev.terms)
+    blockers, advice = [], []
+    if not ev.extended_converged:
+        blockers.append("the output-error refit of the extended model did not converge")
+        advice.append(_TRY["converge"])
+    in_a = combined(ev.rmse_assumed, ev.noise_floor)
+    in_e = combined(ev.rmse_extended, ev.noise_floor)
+    if not np.isfinite(in_e):
+        blockers.append(
+            "the extended model's free run from its fitted initial state does not "
+            "stay finite over the record"
+        )
+    elif np.isfinite(in_a) and in_e >= in_a:
+        blockers.append(
+            "the extended model's free run is no closer to the record than the "
+            f"assumed model's ({sig(in_e, 3)}x against {sig(in_a, 3)}x the noise)"
+        )
+    if ev.unidentified:
+        blockers += list(ev.unidentified)
+        advice.append(_TRY["identify"])
+    if ev.parameters:
+        blockers += list(ev.parameters)
+        advice.append(_TRY["parameters"])
+    if ev.noise_doubt:
+        blockers.append(ev.noise_doubt)
+        advice.append(_TRY["noise"])
+    held = _held_out(ev)
+    if held is None:
+        blockers.append(
+            "there is no held-out data to check the terms on (the record is too "
+            "short to spare a stretch)"
+        )
+        advice.append(_TRY["validation"])
+    else:
+        gain, worst, text = held
+        if gain < 1.0 / HELD_OUT_MARGIN or worst < 1.0 / HELD_OUT_MARGIN:
+            reasons = [f"with {terms} the model is worse on {text}"] + blockers
+            verdict = (
+                "the data contradict the assumed model; the terms found do not "
+                f"explain it: the extended model is worse on {ev.out_source}"
+            )
+            return Conclusion(
+                "not explained", verdict, tuple(reasons), tuple(advice + [_TRY["look"]])
+            )
+        if gain < HELD_OUT_MARGIN:
+            blockers.append(
+                f"on {text}: less than the {HELD_OUT_MARGIN}x an explanation needs"
+            )
+            advice.append(_TRY["look"])
+        if not ev.out_converged:
+            blockers.append("the refits without the held-out stretch did not converge")
+    if blockers:
+        return _inconclusive(
+            [f"the study kept {terms}, but {blockers[0]}"] + blockers[1:], advice
+        )
+    fit_text = _fit_text(ev)
+    gain_text = f"held-out gain {sig(held[0], 3)}x on {ev.out_source}"
+    if np.all(ev.rmse_extended <= FIT_FACTOR * ev.noise_floor):
+        verdict = (
+            "the data contradict the assumed model; the identified terms explain "
+            f"it ({terms}: {gain_text})"
+        )
+        reasons = (
+            f"{held[2]}",
+            f"the extended model fits its record {fit_text} (at most {FIT_FACTOR}x)",
+            "every refit converged, and no kept term or parameter is unidentified",
+        )
+        return Conclusion("explained", verdict, reasons)
+    verdict = (
+        "the data contradict the assumed model; the identified terms explain part "
+        f"of it ({terms}: {gain_text}), but the extended model still misses the "
+        f"data ({fit_text})"
+    )
+    reasons = (
+        f"{held[2]}",
+        f"the extended model still misses its record {fit_text}, more than "
+        f"{FIT_FACTOR}x: part of the effect is not in the library",
+    )
+    return Conclusion("partly explained", verdict, reasons, (_TRY["rest"],))
+
+
+def _held_out(ev: Evidence):
+    """``(combined gain, worst channel gain, text)`` or None."""
+    if ev.out_assumed is None or ev.out_source is None:
+        return None
+    a = combined(ev.out_assumed, ev.noise_floor)
+    e = combined(ev.out_extended, ev.noise_floor)
+    if not np.isfinite(e):
+        return (
+            0.0,
+            0.0,
+            (f"{ev.out_source}, where the extended model's free run diverges"),
+        )
+    if not np.isfinite(a):
+        return (
+            np.inf,
+            np.inf,
+            (f"{ev.out_source}, where only the assumed model's free run diverges"),
+        )
+    with np.errstate(all="ignore"):
+        per = np.asarray(ev.out_assumed, float) / np.asarray(ev.out_extended, float)
+    per = per[np.isfinite(per)]
+    worst = float(per.min()) if per.size else a / e
+    gain = a / e
+    text = (
+        f"{ev.out_source}: RMSE {sig(a, 3)}x -> {sig(e, 3)}x the noise, a gain of "
+        f"{sig(gain, 3)}x"
+    )
+    return gain, worst, text
+
+
+def _fit_text(ev: Evidence) -> str:
+    ratios = np.asarray(ev.rmse_extended, float) / np.asarray(ev.noise_floor, float)
+    parts = [
+        f"{name} {sig(r, 3)}x the noise" for name, r in zip(ev.channel_names, ratios)
+    ]
+    return "to " + ", ".join(parts)
+
+
+def _short(terms, shown=4) -> str:
+    terms = list(terms)
+    text = ", ".join(terms[:shown])
+    return text + (f" and {len(terms) - shown} more" if len(terms) > shown else "")
+
+
+def _inconclusive(reasons, advice) -> Conclusion:
+    first = reasons[0] if reasons else "the evidence does not settle it"
+    verdict = f"inconclusive: {first}"
+    if advice:
+        verdict += f" (try: {advice[0]})"
+    return Conclusion("inconclusive", verdict, tuple(reasons), tuple(advice))
+
+
+_TRY = {
+    "converge": (
+        "a library without look-alike functions, a noise_variance checked against "
+        "the sensor, bounds on the grey-box parameters, or a shorter stretch first"
+    ),
+    "noise": (
+        "state noise_variance (the sensor's noise, or the accuracy the model "
+        "should reach)"
+    ),
+    "library": "other library functions, the inputs, or a hidden state",
+    "identify": (
+        "fix one of the quantities that trade off (a known constant in the "
+        "model), or measure the hidden state"
+    ),
+    "parameters": (
+        "bounds on the parameters (parameters={'M': (90.0, 50.0, 200.0)}) or a "
+        "library without terms that re-do them"
+    ),
+    "validation": "a validation record (validation=(y, t[, u]))",
+    "look": (
+        "a smaller library (functions only of the variables they act on, e.g. "
+        "sign of the velocity, not of the input), a longer record, or one that "
+        "spans the validation record's amplitudes"
+    ),
+    "rest": "more library functions, or a hidden state (the effect may have memory)",
+}

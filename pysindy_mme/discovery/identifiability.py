@@ -1,0 +1,238 @@
+"""Quantities the measurements cannot pin down: exact trade-offs, named.
+
+A fitted model can carry a combination of quantities the data do not
+determine at all: the scale of a state nobody measured (two tanks in series
+with only the lower level measured: the upper level times the pump gain and
+the outflow rate into the lower tank over the upper level enter only as a
+product), a parameter that a correction term re-does, a parameter the
+measurements do not depend on. Gauss-Newton then drifts along the valley and
+stops anywhere (a rate of -60,241 next to one of -1.1e-9), and covariances
+taken at such a point can look tight. A study must not call that an
+explanation.
+
+How: the measured output of the model's free run is differentiated with
+respect to every fitted quantity (initial state, parameters, correction
+coefficients, offsets) by central differences of whole free runs
+(independent of the fit's own linear algebra), whitened by the noise, and
+its columns scaled to unit length. A singular value below ``NULL_TOLERANCE``
+of the largest is an exact trade-off (the columns are linearly dependent to
+within the differencing error, ~1e-9 here); its singular vector says which
+quantities move together and in which proportion, so the report can say
+what *is* determined (``b * a2``, ``c / M``). The state trajectories along
+that direction tell which states' scale is undetermined (a hidden state).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.integrate import simulate_guided
+from ..core.model import ParametricModel
+
+__all__ = ["TradeOff", "exact_trade_offs"]
+
+#: smallest singular value of the column-scaled output Jacobian, relative to
+#: the largest, below which a direction is undetermined: central differences
+#: of free runs are accurate to ~1e-9, genuinely weak directions (look-alike
+#: terms) sit at 1e-2..1e-4 and are judged by their standard errors instead
+NULL_TOLERANCE = 1e-6
+#: free runs of at most this many samples (a prefix of longer records)
+MAX_SAMPLES = 100_000
+#: relative step of the central differences
+STEP = 1e-5
+#: a quantity takes part in a direction when its share is at least this
+INVOLVED = 0.1
+
+
+@dataclass(frozen=True)
+class TradeOff:
+    """One combination of fitted quantities the data do not determine.
+
+    Attributes
+    ----------
+    names : list of str
+        The quantities that move together.
+    exponents : list of float
+        Relative change of each per unit move along the direction (scaled
+        so the largest magnitude is 1): ``+1, -1`` means their product is
+        determined, ``+1, +1`` their ratio. NaN for a quantity at zero.
+    hidden_states : list of str
+        Unmeasured states whose scale changes along the direction.
+    determined : list of str
+        Combinations that are determined (``"b*a2"``), where the exponents
+        say so.
+    """
+
+    names: list
+    exponents: list
+    hidden_states: list
+    determined: list
+
+    def __str__(self) -> str:
+        if len(self.names) == 1:
+            return f"{self.names[0]} has no effect on the measurements"
+        text = f"{_join(self.names)} trade off exactly"
+        if self.hidden_states:
+            plural = "s" if len(self.hidden_states) > 1 else ""
+            text += (
+                f" (the scale of the unmeasured state{plural} "
+                f"{_join(self.hidden_states)} is not determined)"
+            )
+        if self.determined:
+            text += f": only {_join(self.determined)} is determined, not each"
+        return text
+
+
+def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> list:
+    """The exact trade-offs of ``fit``'s quantities (empty when none).
+
+    Parameters
+    ----------
+    engine : OutputErrorModel
+        The record and model the fit belongs to.
+    fit : OutputErrorFit
+    names : list of str
+        One per entry of ``fit.theta`` (parameters, terms, offsets).
+    state_names : list of str
+    measured_states : sequence of int, optional
+        States seen directly (the others are reported as hidden).
+    """
+    n = engine.n_states
+    K = min(engine.t.size, MAX_SAMPLES)
+    if K < 3 or not np.all(np.isfinite(fit.x[:K])):
+        return []
+    theta = np.asarray(fit.theta, dtype=float)
+    n_dyn = theta.size - engine.n_offsets
+    model = ParametricModel(
+        engine.base,
+        n,
+        engine.n_physical,
+        engine.features,
+        fit.slots,
+        n_extra=engine.n_offsets,
+    )
+    t = engine.t[:K]
+    inputs = engine.inputs.subset(0, K)
+    guess = fit.x[:K]
+    q0 = np.concatenate([fit.x[0], theta])
+    labels = [f"{name}(0)" for name in state_names] + list(names)
+    scale_x = np.sqrt(np.mean(fit.x[:K] ** 2, axis=0)) + 1e-300
+
+    def states_at(q):
+        x0, th = q[:n], q[n:]
+
+        def rhs(x, s, u):
+            return model(x, s, u, th)
+
+        with np.errstate(all="ignore"):
+            sim = simulate_guided(rhs, x0, t, inputs, engine.n_substeps, guess)
+        return sim.x[0]
+
+    whiten = _whitener(engine.R)
+    measure = _measure(engine.measurement)
+    columns, state_columns = [], []
+    for j in range(q0.size):
+        ref = abs(q0[j]) if q0[j] != 0 else (scale_x[j] if j < n else 1.0)
+        h = STEP * ref
+        if j >= n + n_dyn:
+            # an offset: the output moves by one unit per unit offset
+            k = j - n - n_dyn
+            col = np.zeros((K, engine.R.shape[0]))
+            col[:, k] = 1.0
+            columns.append((col @ whiten.T).ravel())
+            state_columns.append(np.zeros((K, n)))
+            continue
+        up, down = q0.copy(), q0.copy()
+        up[j] += h
+        down[j] -= h
+        xu, xd = states_at(up), states_at(down)
+        if not (np.all(np.isfinite(xu)) and np.all(np.isfinite(xd))):
+            return []  # a free run left the finite range: nothing to say here
+        state_columns.append((xu - xd) / (2 * h))
+        dy = (measure(xu) - measure(xd)) / (2 * h)
+        columns.append((dy @ whiten.T).ravel())
+    J = np.column_stack(columns)
+    J[:, ~np.isfinite(J).all(axis=0)] = 0.0
+    norms = np.linalg.norm(J, axis=0)
+    out = []
+    for j in np.flatnonzero(norms == 0.0):
+        if j >= n:  # an initial state of nothing measured is caught elsewhere
+            out.append(TradeOff([labels[j]], [1.0], [], []))
+    keep = np.flatnonzero(norms > 0)
+    if keep.size < 2:
+        return out
+    Jn = J[:, keep] / norms[keep]
+    _, s, vt = np.linalg.svd(Jn, full_matrices=False)
+    hidden = [
+        i
+        for i in range(n)
+        if measured_states is not None and i not in set(measured_states)
+    ]
+    for k in np.flatnonzero(s / s[0] < NULL_TOLERANCE):
+        v = vt[k] / norms[keep]  # a perturbation of the quantities
+        out.append(
+            _describe(v, keep, q0, labels, state_columns, scale_x, hidden, state_names)
+        )
+    return out
+
+
+def _describe(v, keep, q0, labels, state_columns, scale_x, hidden, state_names):
+    """A :class:`TradeOff` from a null perturbation ``v`` of ``q0[keep]``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(q0[keep] != 0, v / q0[keep], np.nan)
+    size = np.where(np.isfinite(rel), np.abs(rel), 0.0)
+    # weight by the effect on the output: a quantity at zero still takes part
+    share = np.abs(v) * np.array([np.linalg.norm(state_columns[j]) for j in keep])
+    share = share / share.max() if share.max() > 0 else share
+    involved = [i for i in range(keep.size) if share[i] >= INVOLVED]
+    top = max(size[involved]) if involved and max(size[involved]) > 0 else 1.0
+    exponents = [
+        float(rel[i] / top) if np.isfinite(rel[i]) else np.nan for i in involved
+    ]
+    chosen = [labels[keep[i]] for i in involved]
+    dx = sum(v[i] * state_columns[keep[i]] for i in range(keep.size))
+    moved = [
+        state
+        for state in hidden
+        if np.sqrt(np.mean(dx[:, state] ** 2)) > 1e-3 * np.abs(v).max() * scale_x[state]
+    ]
+    determined = _products(chosen, exponents)
+    return TradeOff(chosen, exponents, [state_names[i] for i in moved], determined)
+
+
+def _products(names, exponents) -> list:
+    """``a*b`` (exponents of opposite sign) or ``a/b`` (same sign), paired
+    with the quantity that moves most, where the exponents are +-1."""
+    pairs = [(nm, e) for nm, e in zip(names, exponents) if np.isfinite(e)]
+    if len(pairs) < 2:
+        return []
+    pairs.sort(key=lambda p: -abs(p[1]))
+    lead, e0 = pairs[0]
+    out = []
+    for name, e in pairs[1:]:
+        if abs(abs(e) - abs(e0)) > 0.05:
+            continue
+        out.append(f"{lead}*{name}" if e * e0 < 0 else f"{lead}/{name}")
+    return out
+
+
+def _whitener(R):
+    """``L^-1`` with ``R = L L^T``: whitened outputs have unit noise."""
+    return np.linalg.inv(np.linalg.cholesky(np.asarray(R, dtype=float)))
+
+
+def _measure(C):
+    """``x (K, n) -> y (K, m)`` for a matrix or a measurement function."""
+    if callable(C):
+        return lambda x: np.asarray(C(np.atleast_2d(x)), dtype=float)
+    C = np.asarray(C, dtype=float)
+    return lambda x: x @ C.T
+
+
+def _join(items) -> str:
+    items = list(items)
+    if len(items) == 1:
+        return items[0]
+    return ", ".join(items[:-1]) + " and " + items[-1]
