@@ -10,7 +10,7 @@ from . import datasets
 from .core.noise import NoiseDiagnostics, estimate_noise_variance
 from .differentiation import MME
 from .differentiation.sindy_route import extended_model_from_sindy
-from .discovery import Discovery, ExtendedModel, discover
+from .discovery import Discovery, ExtendedModel, Parameter, discover
 from .exceptions import (
     DiscoveryWarning,
     DivergenceError,
@@ -24,6 +24,7 @@ __all__ = [
     "MME",
     "Discovery",
     "ExtendedModel",
+    "Parameter",
     "FloatingFStepwise",
     "PowerLibrary",
     "discover",

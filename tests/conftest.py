@@ -63,6 +63,7 @@ def case_counter(pytestconfig) -> Counter:
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    _audit_summary(terminalreporter)
     counts = config.stash.get(_CASES, None)
     if not counts:
         return
@@ -71,3 +72,34 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     for name, count in sorted(counts.items()):
         terminalreporter.write_line(f"{name:<{width}}  {count:>6}")
     terminalreporter.write_line(f"{'total':<{width}}  {sum(counts.values()):>6}")
+
+
+@pytest.fixture(autouse=True)
+def audited_studies(monkeypatch):
+    """Every study a test runs is audited as it returns (``report_audit``):
+    its report's claims against its result, its RMSEs against free runs
+    written in the tests (before the test can change the result)."""
+    import report_audit
+
+    from pysindy_mme.discovery import study as study_module
+
+    results = []
+    original = study_module.run_study
+
+    def audited(study, progress):
+        res = original(study, progress)
+        report_audit.audit(res)
+        results.append(res)
+        return res
+
+    monkeypatch.setattr(study_module, "run_study", audited)
+    return results
+
+
+def _audit_summary(terminalreporter):
+    import report_audit
+
+    if report_audit.audited_runs:
+        terminalreporter.section("studies audited against independent free runs")
+        for what, count in sorted(report_audit.audited_runs.items()):
+            terminalreporter.write_line(f"{what}: {count}")

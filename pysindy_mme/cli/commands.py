@@ -109,6 +109,15 @@ def _study(request):
         ) from None
 
 
+def print_conclusion(result) -> None:
+    """The last lines a user sees: the conclusion, why, and what to try."""
+    print(f"\nConclusion: {result.conclusion}. {one_line(result.verdict)}.")
+    for reason in result.reasons:
+        print(f"  because {one_line(reason)}")
+    for tip in result.advice:
+        print(f"  try: {one_line(tip)}")
+
+
 def run_discover(args) -> int:
     """A user's CSV and model file."""
     request = build_request(args)
@@ -124,6 +133,7 @@ def run_discover(args) -> int:
         warn_line(hint)
     written = write_outputs(result, Path(args.out), notes=notes + hints)
     print("Written: " + ", ".join(str(p) for p in written))
+    print_conclusion(result)
     return 0
 
 
@@ -172,4 +182,5 @@ def run_demo(args) -> int:
     )
     written = write_outputs(result, Path(args.out), x_true=data.x, d_true=data.d)
     print("\nWritten: " + ", ".join(str(p) for p in written))
+    print_conclusion(result)
     return 0

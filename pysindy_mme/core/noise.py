@@ -56,21 +56,36 @@ noise) and the sampling uniform within 1 %. Records without 4 NaN-free
 stretches of 128 samples fall back to the order-4 difference estimator,
 checked against order 8 and against the record's variance (flagged when they
 disagree or when the record looks white).
+
+Quantised sensors (an encoder with a 50 nm step, an ADC): rounding to a grid
+of step ``q`` adds a white error of variance ``q^2 / 12`` when the signal
+crosses many steps, so the floor of such a record cannot fall below that,
+however small the sensor's own noise. :func:`quantisation_step` finds the
+grid; where the estimate is at its level (sd at most ``2 q / sqrt(12)``) the
+noise is *not determined* by the data (``determined=False``): the variance
+``q^2 / 12`` of the quantisation is returned, a lower bound on the
+measurement error, and the user has to state the noise.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from math import comb
 
 import numpy as np
 from scipy import stats
 
 from ..exceptions import DiscoveryWarning
+from .tables import sig
 from .validation import check_time
 
-__all__ = ["NoiseDiagnostics", "estimate_noise_variance"]
+__all__ = [
+    "NoiseDiagnostics",
+    "describe_noise",
+    "estimate_noise_variance",
+    "quantisation_step",
+]
 
 _METHODS = ("auto", "spectral", "difference")
 _MIN_SEGMENT = 128  # shortest segment: 60 usable bins, 10 bands of 6
@@ -88,6 +103,36 @@ _Z_TRIM = 1.645
 # Hann windows correlate neighbouring bins; the variance of a mean over many
 # bins grows by 1 + 2 (4/9 + 1/36) = 1.944 compared with independent bins.
 _HANN_VARIANCE_INFLATION = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0)
+
+# Quantisation (see quantisation_step).
+# The noise counts as undetermined while its estimated sd is at most this
+# multiple of the quantisation sd q / sqrt(12): the estimate is then at most
+# q^2 / 3 = q^2 / 12 + (q / 2)^2, i.e. the noise beyond the rounding error is
+# at most half a step. Below about half a step the rounding error is not the
+# white, signal-independent error of variance q^2 / 12 (Widrow's quantisation
+# theorem needs noise of about that size to dither it), so the data cannot
+# separate the sensor noise from the rounding.
+_QUANTISATION_FACTOR = 2.0
+# A value is on the grid when within this fraction of a step of it (plus the
+# float rounding of values of its magnitude).
+_GRID_TOL = 1e-6
+# Share of the samples that must lie on the grid: a few glitches are allowed.
+_ON_GRID_SHARE = 0.999
+# Distinct levels that must lie on the grid beyond those the step was built
+# from: a continuous value is within _GRID_TOL of a given grid with
+# probability ~2e-6, so three such leave a false alarm of ~1e-17.
+_MIN_CHECKS = 3
+# Grids finer than 1e-10 of the range are not looked for: there the float
+# rounding of the values approaches _GRID_TOL of the step, and every float64
+# record lies on the grid of its own least significant bit.
+_MAX_LEVELS = 1e10
+# A step candidate whose rounding error exceeds this share of it cannot be
+# reduced further (its multiples no longer tell integers apart).
+_MAX_STEP_ERROR = 1e-3
+# Spacings tried as the first step candidate when some values are off the
+# grid (glitches make the smallest spacings).
+_N_CANDIDATES = 4
+_EPS = float(np.finfo(float).eps)
 
 
 _FLAT = (
@@ -126,11 +171,23 @@ class NoiseDiagnostics:
         alone (Gaussian white noise in the bins used); signal power in the
         floor adds a bias that this does not include.
     reliable : bool
-        False when the estimate is only an upper bound (or zero).
+        False when the estimate is only an upper bound (or zero), or when the
+        noise is not determined (``determined=False``).
     reason : str
         Why it is not reliable; empty when it is.
     fallback : str
         Why ``method="auto"`` used differences; empty otherwise.
+    quantisation_step : float
+        Step of the grid the channel's values lie on
+        (:func:`quantisation_step`); ``nan`` when they lie on none. The
+        estimate includes the rounding error (variance ``step^2 / 12``), which
+        is part of the measurement error.
+    determined : bool
+        False when the channel is quantised and the estimate is at the
+        quantisation level (sd at most ``2 step / sqrt(12)``): the sensor noise
+        cannot be told from the rounding, and ``variance`` is then
+        ``max(estimate, step^2 / 12)``, the rounding error alone, a lower bound
+        on the measurement error. The noise has to be stated.
     """
 
     channel: int
@@ -145,6 +202,8 @@ class NoiseDiagnostics:
     reliable: bool
     reason: str
     fallback: str = ""
+    quantisation_step: float = float("nan")
+    determined: bool = True
 
 
 def estimate_noise_variance(
@@ -192,6 +251,9 @@ def estimate_noise_variance(
     Returns
     -------
     variance : ndarray (n_channels,)
+        For a quantised channel whose estimate is at the quantisation level
+        (``NoiseDiagnostics.determined`` False): ``step^2 / 12``, the variance
+        of the rounding, unless the estimate is larger.
     diagnostics : list of NoiseDiagnostics
         Only with ``return_diagnostics=True``.
 
@@ -213,6 +275,7 @@ def estimate_noise_variance(
         diag = _estimate_channel(
             Y[:, j], j, method, order, segment_length, n_bands, sampling
         )
+        diag = _with_quantisation(diag, Y[:, j])
         if warn and not diag.reliable:
             used = f" (differences were used: {diag.fallback})" if diag.fallback else ""
             warnings.warn(
@@ -224,6 +287,251 @@ def estimate_noise_variance(
         results.append(diag)
     variance = np.array([d.variance for d in results])
     return (variance, results) if return_diagnostics else variance
+
+
+def quantisation_step(col) -> float:
+    """Step of the uniform grid that a channel's values lie on, or ``nan``.
+
+    A channel is quantised when its finite values are ``offset + k * step``
+    for integers ``k`` (an encoder, an ADC, values printed with a fixed number
+    of decimals), each within ``1e-6`` of the step plus the float rounding of
+    values of its magnitude, for at least 99.9 % of the samples (a few
+    glitches are allowed). Only a few of the levels need to occur: the step is
+    the largest one that divides every spacing between the sorted distinct
+    values (found by Euclid's algorithm on the spacings, with their rounding
+    errors carried along), refined by a least-squares fit of the values on
+    their level numbers. Cost ``O(n log n)``.
+
+    Parameters
+    ----------
+    col : array-like
+        The values of one channel (flattened); NaN and inf are ignored.
+
+    Returns
+    -------
+    float
+        The step (positive), or ``nan`` when the values lie on no grid: a
+        continuous channel; fewer than 5 distinct values, or no 3 distinct
+        values beyond those the step was built from (too little to tell a grid
+        from chance; a constant channel in particular); a grid finer than
+        ``1e-10`` of the range (float rounding).
+    """
+    x = np.asarray(col, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return float("nan")
+    u, counts = np.unique(x, return_counts=True)
+    scale = float(np.max(np.abs(u)))
+    tau = 8.0 * _EPS * scale  # rounding error of a difference of two values
+    if u.size > 1:  # one level written two ways (differing in the last bits)
+        new = np.r_[True, np.diff(u) > tau]
+        counts = np.bincount(np.cumsum(new) - 1, weights=counts)
+        u = u[new]
+    if u.size < 2 + _MIN_CHECKS:
+        return float("nan")
+    d = np.diff(u)
+    # First every value on the grid, from the smallest spacing; then allowing
+    # glitches, from small spacings that recur (a glitch makes a spacing that
+    # does not).
+    for allowed_off, candidates in (
+        (0.0, [int(np.argmin(d))]),
+        (1.0 - _ON_GRID_SHARE, _recurring_spacings(d, tau)),
+    ):
+        for i in candidates:
+            found = _euclid_step(d, counts, i, tau, allowed_off)
+            if found is None:
+                continue
+            g, err, good, n_used = found
+            # reference level: an end of the best-populated spacing on the grid
+            weight = np.where(good, counts[:-1] + counts[1:], -1.0)
+            ref = float(u[int(np.argmax(weight))])
+            step = _fit_grid(u, counts, g, err, ref, tau, n_used)
+            if np.isfinite(step):
+                return step
+    return float("nan")
+
+
+def _recurring_spacings(d, tau):
+    """Indices of the smallest spacings that occur at least 3 times.
+
+    Spacings equal within rounding form a group; the first index of each of
+    the ``_N_CANDIDATES`` smallest groups of 3 or more is returned.
+    """
+    order = np.argsort(d, kind="stable")
+    ds = d[order]
+    new = np.r_[True, np.diff(ds) > tau + _GRID_TOL * ds[1:]]
+    size = np.bincount(np.cumsum(new) - 1)
+    return order[new][size >= 3][:_N_CANDIDATES].tolist()
+
+
+def _euclid_step(d, counts, i, tau, allowed_off):
+    """Largest step dividing the spacings ``d``, starting from ``d[i]``.
+
+    Euclid's algorithm: while some spacing is no integer multiple of the
+    candidate ``g``, its remainder modulo ``g`` (a multiple of the true step,
+    at most ``g / 2``) becomes the candidate, and the earlier candidates must
+    be multiples of it too. Rounding errors are carried along (``err``; a
+    multiple ``q g`` has error ``q err``). Spacings next to values holding at
+    most ``allowed_off`` of the samples may stay off the grid (glitches).
+
+    Returns ``(g, err, good, n_used)`` (``good``: the spacings on the grid;
+    ``n_used``: distinct values the candidate was built from) or None when
+    the candidate becomes finer than ``_MAX_LEVELS`` of the range or too
+    imprecise.
+    """
+    span = float(d.sum())
+    total = float(counts.sum())
+    g, err = float(d[i]), tau
+    earlier = []  # (candidate, its error): the step must divide them too
+    n_used = 2
+    while True:
+        if span / g > _MAX_LEVELS or err > _MAX_STEP_ERROR * g:
+            return None
+        q = np.round(d / g)
+        bad = np.abs(d / g - q) > _GRID_TOL + (tau + q * err) / g
+        bad_earlier = [
+            (v, e)
+            for v, e in earlier
+            if abs(v / g - round(v / g)) > _GRID_TOL + (e + round(v / g) * err) / g
+        ]
+        if not bad_earlier:
+            # A glitch spoils both spacings next to it: half the smaller
+            # counts at the ends of the spoilt spacings estimates its samples.
+            off = np.minimum(counts[:-1], counts[1:])[bad].sum() / 2.0
+            if off <= allowed_off * total:
+                return g, err, ~bad, n_used
+        values = np.r_[d[bad], [v for v, _ in bad_earlier]]
+        errors = np.r_[np.full(int(bad.sum()), tau), [e for _, e in bad_earlier]]
+        multiple = np.round(values / g)
+        rem = np.abs(values - multiple * g)
+        rem_err = errors + multiple * err
+        precise = (rem > 0.0) & (rem_err <= _MAX_STEP_ERROR * rem)
+        if not precise.any():
+            return None
+        j = np.flatnonzero(precise)[np.argmin(rem[precise])]
+        earlier.append((g, err))
+        g, err = float(rem[j]), float(rem_err[j])
+        n_used += 1
+
+
+def _fit_grid(u, counts, g, err, ref, tau, n_used):
+    """The step refined on all levels, or ``nan`` if they do not fit a grid.
+
+    Level numbers ``k = round((u - ref) / step)`` are only certain where
+    ``|k|`` times the step's relative error stays small; the fit of
+    ``u = offset + step * k`` on those makes the step more precise, which
+    makes more levels certain, until all are. The result is accepted when
+    at least ``_ON_GRID_SHARE`` of the samples and ``_MIN_CHECKS`` distinct
+    levels beyond the ``n_used`` it was built from lie on the grid.
+    """
+    step, offset, rel = g, ref, err / g
+    while True:
+        k = np.round((u - offset) / step)
+        certain = np.abs(k) * rel <= 0.05
+        res = u - (offset + step * k)
+        tol = _GRID_TOL * step + 8.0 * _EPS * (np.abs(u) + abs(offset))
+        fit = certain & (np.abs(res) <= tol + 2.0 * np.abs(k) * rel * step)
+        kf, uf = k[fit], u[fit]
+        if kf.size < 2 or kf.max() == kf.min():
+            return float("nan")
+        kc = kf - kf.mean()
+        step = float(kc @ (uf - uf.mean()) / (kc @ kc))
+        offset = float(uf.mean() - step * kf.mean())
+        if certain.all():
+            break
+        # a fit over a span of K levels pins the step to ~ tau / K
+        new_rel = 2.0 * tau / (step * (kf.max() - kf.min()))
+        if not step > 0.0 or new_rel >= 0.5 * rel:
+            return float("nan")
+        rel = new_rel
+    k = np.round((u - offset) / step)
+    tol = _GRID_TOL * step + 8.0 * _EPS * (np.abs(u) + abs(offset))
+    on = np.abs(u - (offset + step * k)) <= tol
+    if (
+        not step > 0.0
+        or counts[on].sum() < _ON_GRID_SHARE * counts.sum()
+        or int(on.sum()) - n_used < _MIN_CHECKS
+    ):
+        return float("nan")
+    return step
+
+
+def _with_quantisation(diag, col):
+    """``diag`` with the channel's quantisation step, and its consequence.
+
+    When the estimate is at the quantisation level (sd at most
+    ``_QUANTISATION_FACTOR * step / sqrt(12)``) the noise is not determined:
+    the variance becomes at least ``step^2 / 12``, the rounding error, which
+    is part of the measurement error whatever the sensor's noise.
+    """
+    step = quantisation_step(col)
+    if not np.isfinite(step):
+        return diag
+    floor = step**2 / 12.0
+    if diag.variance > _QUANTISATION_FACTOR**2 * floor:
+        return replace(diag, quantisation_step=step)
+    reason = (
+        f"the channel is quantised with step {sig(step)} and its estimated noise "
+        f"(sd {sig(np.sqrt(diag.variance))}) is at the quantisation level (sd of "
+        f"the rounding: step/sqrt(12) = {sig(np.sqrt(floor))}): the sensor noise "
+        "cannot be told from the quantisation, so the noise is not determined by "
+        "the data; the rounding's variance step^2/12 is used, a lower bound. "
+        "State the noise variance (the sensor's specified noise, or the accuracy "
+        "the model is expected to reach)"
+    )
+    if diag.reason:
+        reason += f"; besides, {diag.reason}"
+    return replace(
+        diag,
+        variance=float(max(diag.variance, floor)),
+        quantisation_step=step,
+        determined=False,
+        reliable=False,
+        reason=reason,
+    )
+
+
+def describe_noise(variance, diagnostics) -> str:
+    """One line for a report: how the noise variance of each channel was found.
+
+    Parameters
+    ----------
+    variance : float or array-like (m,) or (m, m)
+        The variances used (the diagonal of a covariance matrix).
+    diagnostics : list of NoiseDiagnostics or None
+        From :func:`estimate_noise_variance`; None when the noise was stated.
+
+    Returns
+    -------
+    str
+        E.g. ``"estimated from the data: sd 1e-05 (spectral floor 120-500 Hz;
+        quantised, step 5e-08)"``; several channels as ``"channel 0 sd ...;
+        channel 1 sd ..."``; ``"stated: sd 0.001"`` when stated.
+    """
+    var = np.asarray(variance, dtype=float)
+    var = np.diag(var) if var.ndim == 2 else np.atleast_1d(var)
+    sds = np.sqrt(np.abs(var))
+    if diagnostics is None:
+        return "stated: sd " + ", ".join(sig(v) for v in sds)
+    items = []
+    for d, sd in zip(diagnostics, sds):
+        if d.band is not None:
+            how = f"spectral floor {sig(d.band[0], 3)}-{sig(d.band[1], 3)} {d.unit}"
+        else:
+            how = "differences"
+        if not d.determined:
+            how += (
+                f"; NOT determined: quantised, step {sig(d.quantisation_step)}, "
+                "at the quantisation level"
+            )
+        elif np.isfinite(d.quantisation_step):
+            how += f"; quantised, step {sig(d.quantisation_step)}"
+        if d.determined and not d.reliable:
+            how += "; not reliable"
+        items.append((d.channel, f"sd {sig(sd)} ({how})"))
+    if len(items) == 1:
+        return "estimated from the data: " + items[0][1]
+    return "estimated from the data: " + "; ".join(f"channel {j} {t}" for j, t in items)
 
 
 def _check_inputs(y, t, method, order, segment_length, n_bands):

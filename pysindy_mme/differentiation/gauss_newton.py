@@ -5,6 +5,14 @@ KKT system of the linearised problem (``_kkt_step``), a line search on the
 exact l1 merit function (cost + penalty on the dynamics defects) globalises
 it, and the result is packaged with its costs. A mixin: it uses the
 solver's dynamics, costs and KKT system.
+
+Bounds on the parameters (``theta_bounds``) enter the subproblem itself
+(``_bounded_step``): its step keeps ``theta`` inside the box for every step
+length up to 1, and is zero at a point where a parameter is held on a bound
+by data pushing outwards, so the convergence test below applies unchanged.
+The iterates are only clipped to undo rounding: ``theta + (bound - theta)``
+need not be the bound exactly, and a parameter meant to sit on its bound
+(reported as such) must.
 """
 
 from __future__ import annotations
@@ -35,7 +43,8 @@ class GaussNewton:
         n_iter = stall = nonfinite = 0
         for n_iter in range(1, self.max_iter + 1):  # noqa: B007
             try:
-                dx, d_new, dth, lam, logdet, deficient = self._kkt_step(lin, W, Winv)
+                step = self._kkt_step(lin, W, Winv)
+                dx, d_new, dth, lam, logdet, deficient, active = step
             except np.linalg.LinAlgError:
                 self._raise_singular(lin)
             dd = d_new - d
@@ -58,13 +67,16 @@ class GaussNewton:
             slope = grad_dot_p - mu * defect_l1
             if -slope <= self.tol * max(phi0, np.finfo(float).tiny):
                 # Stationary to within tol: take the (tiny) step and stop.
-                x, d, theta = x + dx, d_new, theta + dth
+                x, d, theta = x + dx, d_new, self._on_box(theta + dth, active)
                 converged = True
                 message = "converged"
                 break
             alpha, accepted = 1.0, False
             for _ in range(40):
-                xt, dt_, tht = x + alpha * dx, d + alpha * dd, theta + alpha * dth
+                xt, dt_ = x + alpha * dx, d + alpha * dd
+                tht = theta + alpha * dth
+                if active is not None:
+                    tht = self._on_box(tht, active if alpha == 1.0 else None)
                 with np.errstate(all="ignore"):
                     phi_t = self.flow(xt, dt_, tht, jacobian=False)
                     meas_t = self.measurement_cost(self.residuals(xt, tht))
@@ -105,6 +117,18 @@ class GaussNewton:
         )
         res.nonfinite_trials = nonfinite
         return res
+
+    def _on_box(self, theta, active):
+        """``theta`` clipped into the bounds (rounding only, see the module
+        docstring); entries ``active`` puts on a bound set to it exactly."""
+        bounds = getattr(self, "theta_bounds", None)
+        if bounds is None:
+            return theta
+        theta = np.clip(theta, bounds[:, 0], bounds[:, 1])
+        if active is not None:
+            theta = np.where(active < 0, bounds[:, 0], theta)
+            theta = np.where(active > 0, bounds[:, 1], theta)
+        return theta
 
     def _result(
         self, W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient

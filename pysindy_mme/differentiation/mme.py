@@ -54,6 +54,10 @@ class MMEProblem:
         The assumed model, checked.
     y, t, u
         The checked data (``u`` as given on the grid, a callable or None).
+    noise_diagnostics : list of NoiseDiagnostics or None
+        How ``noise_variance="auto"`` found the noise of each channel
+        (``determined=False``: quantised at the quantisation level, the noise
+        is not known); None when the noise was stated.
     """
 
     smoother: object
@@ -67,6 +71,7 @@ class MMEProblem:
     y: np.ndarray
     t: np.ndarray
     u: object
+    noise_diagnostics: object = None
 
 
 class MME(MMEChecks, BaseDifferentiation):
@@ -356,7 +361,7 @@ class MME(MMEChecks, BaseDifferentiation):
         N, m = y.shape
         t = check_time(t, N, "t")
         measurement, g_jac = self._measurement_model(n, m)
-        R = self._noise(y, t, m)
+        R, noise_diagnostics = self._noise(y, t, m)
         es = (
             np.arange(n)
             if self.error_states is None
@@ -409,6 +414,7 @@ class MME(MMEChecks, BaseDifferentiation):
             y=y,
             t=t,
             u=u,
+            noise_diagnostics=noise_diagnostics,
         )
 
     # ------------------------------------------------------------- solving

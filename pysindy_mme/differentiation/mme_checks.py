@@ -195,6 +195,15 @@ class MMEChecks:
             )
 
     def _noise(self, y, t, m):
+        """The noise covariance ``R`` and how it was found.
+
+        Returns ``(R, diagnostics)``: ``diagnostics`` is the list of
+        :class:`~pysindy_mme.NoiseDiagnostics` when ``noise_variance="auto"``,
+        None when the noise was stated. A quantised channel whose estimate is
+        at the quantisation level does not raise: it gets the rounding's
+        variance ``step^2 / 12`` and ``determined=False``, so that the study
+        can say it is inconclusive.
+        """
         nv = self.noise_variance
         if isinstance(nv, str):
             if nv != "auto":
@@ -208,25 +217,42 @@ class MMEChecks:
             if np.any(var <= 0):
                 raise ValueError(
                     "noise_variance='auto' estimated a zero noise variance (the "
-                    "data look noise-free or quantised); give noise_variance"
+                    "data look noise-free); give noise_variance"
                 )
             doubts = "; ".join(
                 f"channel {d.channel}: {d.reason}"
                 for d in diagnostics
-                if not d.reliable
+                if not d.reliable and d.determined
+            )
+            # Quantised channels at the quantisation level: the noise is not
+            # determined, whatever the spectrum says; said first and plainly.
+            undetermined = "; ".join(
+                f"channel {d.channel} is quantised with step "
+                f"{sig(d.quantisation_step)} and its noise is at the quantisation "
+                "level, so the noise is NOT determined by the data: the rounding's "
+                f"variance step^2/12 = {sig(d.variance)} is used"
+                for d in diagnostics
+                if not d.determined
+            )
+            quantised = ", ".join(
+                f"channel {d.channel} quantised with step {sig(d.quantisation_step)}"
+                for d in diagnostics
+                if d.determined and np.isfinite(d.quantisation_step)
             )
             warnings.warn(
                 "noise_variance='auto': estimated the measurement noise variance "
                 f"as [{', '.join(sig(v) for v in var)}] (sd "
                 f"[{', '.join(sig(v) for v in np.sqrt(var))}]) from the noise floor "
                 "of the data's spectrum"
+                + (f" ({quantised}; the rounding is included)" if quantised else "")
+                + (f"; {undetermined}" if undetermined else "")
                 + (f"; not reliable - {doubts}" if doubts else "")
                 + ". Give noise_variance if it is known",
                 UserWarning,
                 stacklevel=4,
             )
-            return np.diag(var)
-        return noise_covariance(nv, m)
+            return np.diag(var), diagnostics
+        return noise_covariance(nv, m), None
 
     def _W_spec(self, q):
         W = self.W

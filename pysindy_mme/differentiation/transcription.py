@@ -68,7 +68,7 @@ import numpy as np
 from ..core.integrate import InputSignal, rk4_flow
 from ..exceptions import DivergenceError
 from .gauss_newton import GaussNewton
-from .kkt import CHUNK, BandedKKT, solve_reduced
+from .kkt import CHUNK, BandedKKT, equilibrated_inverse, solve_reduced
 from .observability import unobservable_directions
 from .records import Linearization, SmootherResult
 from .units import Dynamics, internal_unit
@@ -80,7 +80,65 @@ _SUSPECT_PIVOT = 1e-10
 # linearised model is treated as exploding.
 _MAX_GROWTH = 1e6
 
-__all__ = ["MMESmoother", "SmootherResult", "internal_unit"]
+__all__ = ["MMESmoother", "SmootherResult", "box_qp", "internal_unit"]
+
+
+def box_qp(S, g, lower, upper):
+    """Minimise ``1/2 v^T S v - g^T v`` over ``lower <= v <= upper``.
+
+    ``S`` is symmetric positive semi-definite (a reduced Hessian) and
+    ``lower <= 0 <= upper`` (entries may be infinite), so ``v = 0`` is
+    feasible and the primal active-set method starts there: each pass
+    solves for the free entries with the held ones fixed (equilibrated
+    pseudo-inverse, like the unbounded step, so parameters of any scale and
+    undetermined directions are handled alike), walks towards that solution
+    until a bound blocks (the blocking entry is then held), and when nothing
+    blocks releases a held entry whose multiplier has the wrong sign (the
+    gradient ``S v - g`` pulls it inside). The objective never increases,
+    and for a positive definite ``S`` the method ends in finitely many
+    passes at the exact minimiser.
+
+    Returns ``(v, active)``: ``active`` is -1 / +1 where ``v`` is held on
+    its lower / upper bound, 0 elsewhere.
+    """
+    p = g.size
+    # start on the bounds the current point already touches
+    active = np.where(lower >= 0.0, -1, np.where(upper <= 0.0, 1, 0))
+    v = np.zeros(p)
+    for _ in range(4 * p + 10):
+        held = active != 0
+        target = np.where(active < 0, lower, np.where(active > 0, upper, 0.0))
+        free = ~held
+        if free.any():
+            inverse, _ = equilibrated_inverse(S[np.ix_(free, free)])
+            rhs = g[free] - S[np.ix_(free, held)] @ target[held]
+            target[free] = inverse @ rhs
+        step = target - v
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(
+                step < 0,
+                (lower - v) / step,
+                np.where(step > 0, (upper - v) / step, np.inf),
+            )
+        room = np.where(free, room, np.inf)
+        j = int(np.argmin(room))
+        if room[j] < 1.0:
+            v = v + max(room[j], 0.0) * step
+            active[j] = -1 if step[j] < 0 else 1
+            v[j] = lower[j] if step[j] < 0 else upper[j]
+            continue
+        v = target
+        grad = S @ v - g
+        # a held entry stays held while the gradient pushes it outwards (up
+        # to rounding of the terms that make it up)
+        slack = 1e-12 * (np.abs(g) + np.abs(S) @ np.abs(v))
+        wrong = ((active < 0) & (grad < -slack)) | ((active > 0) & (grad > slack))
+        if not wrong.any():
+            break
+        diag = np.sqrt(np.maximum(np.abs(np.diag(S)), np.finfo(float).tiny))
+        j = int(np.argmax(np.where(wrong, np.abs(grad) / diag, -1.0)))
+        active[j] = 0
+    return v, active
 
 
 class MMESmoother(GaussNewton):
@@ -125,6 +183,10 @@ class MMESmoother(GaussNewton):
         (constant offsets per channel).
     input_hold : {"linear", "zoh"}
         How an input array is applied between samples.
+    theta_bounds : ndarray (p, 2), optional
+        ``[lower, upper]`` per parameter (``-inf`` / ``inf``: none). Every
+        iterate stays inside: each Gauss-Newton step solves its subproblem
+        with the bounds (:meth:`_bounded_step`).
 
     Attributes
     ----------
@@ -155,6 +217,7 @@ class MMESmoother(GaussNewton):
         theta_init=None,
         measurement_offsets=None,
         input_hold: str = "linear",
+        theta_bounds=None,
     ):
         self.model = model
         self.y = np.asarray(y, dtype=float)
@@ -187,6 +250,9 @@ class MMESmoother(GaussNewton):
             else measurement_offsets
         )
         self._M = np.asarray(M, dtype=float) / s
+        self.theta_bounds = None
+        if theta_bounds is not None:
+            self.theta_bounds = np.asarray(theta_bounds, dtype=float).reshape(self.p, 2)
         self._y0 = np.where(self.mask, self.y / s, 0.0)
         if callable(measurement):
             self.C = None
@@ -454,7 +520,9 @@ class MMESmoother(GaussNewton):
     def _kkt_step(self, lin: Linearization, W, Winv):
         """One Gauss-Newton subproblem.
 
-        Returns ``(dx, d_new, dtheta, lam, logdet, rank_deficient)``.
+        Returns ``(dx, d_new, dtheta, lam, logdet, rank_deficient, active)``;
+        ``active`` (None without bounds) is -1 / +1 for a parameter the step
+        puts or holds on its lower / upper bound, else 0.
         """
         n, N = self.n, self.N
         fac, HR, GW, E, D = self.kkt_system(lin, W, Winv)
@@ -477,8 +545,11 @@ class MMESmoother(GaussNewton):
             else np.zeros(0)
         )
         sol = solve_reduced(fac, E, D, rhs, c)
-        dx = sol.z[:, :n]
-        lam = sol.z[:-1, n:]
+        z, dtheta, active = sol.z, sol.dtheta, None
+        if self.theta_bounds is not None:
+            z, dtheta, active = self._bounded_step(fac, E, D, rhs, c, sol, lin.theta)
+        dx = z[:, :n]
+        lam = z[:-1, n:]
         d_new = lin.d
         if self.q:
             d_new = -np.einsum("kiq,ki->kq", GW, lam) / self.h[:, None]
@@ -486,7 +557,47 @@ class MMESmoother(GaussNewton):
         if self.p:
             sign, logdet_sc = np.linalg.slogdet(sol.Sc)
             logdet += logdet_sc if sign != 0 else np.inf
-        return dx, d_new, sol.dtheta, lam, logdet, sol.rank_deficient
+        return dx, d_new, dtheta, lam, logdet, sol.rank_deficient, active
+
+    def project(self, theta):
+        """``theta`` clipped into ``theta_bounds`` (itself without bounds)."""
+        theta = np.asarray(theta, dtype=float)
+        if self.theta_bounds is None:
+            return theta
+        return np.clip(theta, self.theta_bounds[:, 0], self.theta_bounds[:, 1])
+
+    def _bounded_step(self, fac, E, D, b, c, sol, theta):
+        """The Gauss-Newton step with ``theta + dtheta`` kept inside the bounds.
+
+        The bounds act on ``theta`` only, which borders the band: eliminating
+        the states leaves the subproblem in ``dtheta`` alone, the quadratic
+        ``1/2 dtheta^T Sc dtheta - g^T dtheta`` (``Sc`` the reduced Hessian,
+        ``g = c - E^T K^-1 b``), now over a box. That small dense problem is
+        solved exactly (:func:`box_qp`) and the states follow from one more
+        banded solve, ``z = K^-1 (b - E dtheta)``. Solving the subproblem
+        with its bounds, rather than projecting the free step, is what makes
+        a parameter held on a bound a proper stopping point: at a KKT point
+        of the bounded problem (pinned there, the data pushing outward) the
+        bounded step is zero, so the predicted decrease, the convergence
+        test, vanishes; a projected free step would still point outwards
+        and the line search would fail instead of converging. Every trial
+        point ``theta + alpha dtheta`` (``0 < alpha <= 1``) is then inside
+        the box too (it is convex), and the step is a descent direction of
+        the merit function like the free one.
+
+        Costs nothing extra while the free step stays inside the box (it is
+        then the bounded step too, and is returned unchanged).
+        """
+        lower = np.minimum(self.theta_bounds[:, 0] - theta, 0.0)
+        upper = np.maximum(self.theta_bounds[:, 1] - theta, 0.0)
+        free = sol.dtheta
+        if np.all((free > lower) & (free < upper)):
+            return sol.z, free, np.zeros(self.p, dtype=int)
+        Kb = fac.solve(b)
+        g = c - E.reshape(-1, self.p).T @ Kb.ravel()
+        dtheta, active = box_qp(sol.Sc, g, lower, upper)
+        z = Kb - fac.solve(np.einsum("kbp,p->kb", E, dtheta))
+        return z, dtheta, active
 
     # ----------------------------------------------------------------- solve
     def solve(self, W=None, start: SmootherResult | None = None) -> SmootherResult:
@@ -507,7 +618,7 @@ class MMESmoother(GaussNewton):
         else:
             x, d = (start.x, start.d) if start is not None else self.initial_guess()
             theta = start.theta if start is not None and self.p else self.theta_init
-            lin = self.linearize(x / s, d / s, theta)
+            lin = self.linearize(x / s, d / s, self.project(theta))
         res = self._solve(W * s**2, lin)
         # Back to the user's units. J is unit-free; the multipliers (of J / 2
         # against defects in x) scale as 1 / s; the density of the N_obs

@@ -17,6 +17,7 @@ Arguments are checked in one place (``inputs.py``); the answer is a
 from ..exceptions import DiscoveryWarning
 from .extended import ExtendedModel
 from .gain import Gain
+from .parameters import Parameter
 from .result import Discovery, TermEstimate
 from .study import discover
 
@@ -26,5 +27,6 @@ __all__ = [
     "DiscoveryWarning",
     "ExtendedModel",
     "Gain",
+    "Parameter",
     "TermEstimate",
 ]

@@ -62,12 +62,15 @@ class FreeRun:
         After the window; inf when the run diverged.
     diverged_at : float or None
         Time at which the run left the bound, if it did.
+    model : callable
+        The model that ran, ``(x, t, u) -> dx/dt`` (as printed).
     """
 
     x0: np.ndarray
     x: np.ndarray
     rmse: np.ndarray
     diverged_at: float | None = None
+    model: object = None
 
 
 @dataclass
@@ -159,4 +162,10 @@ def free_run(model, x0, t, inputs: InputSignal, substeps, measure, y, window, gu
     x = sim.x[0]
     at = int(sim.diverged_at[0])
     err = rmse(y[window:], measure(x)[window:])
-    return FreeRun(x0=x0, x=x, rmse=err, diverged_at=None if at < 0 else float(t[at]))
+    return FreeRun(
+        x0=x0,
+        x=x,
+        rmse=err,
+        diverged_at=None if at < 0 else float(t[at]),
+        model=model,
+    )

@@ -18,7 +18,10 @@ from sklearn.base import clone
 from ..core import validation as val
 from ..core.integrate import HOLDS, InputSignal
 from ..core.libraries import fresh_library
+from ..core.noise import describe_noise
 from ..differentiation import MME
+from .parameters import parameter_spec
+from .placement import default_error_states
 
 __all__ = ["Study", "check_study", "MME_KEYWORDS"]
 
@@ -68,6 +71,9 @@ class Study:
         The grey-box ``f(x, t, u, p)`` when ``parameter_names`` are given.
     parameter_names : list of str; parameter_init : ndarray
         The assumed model's parameters to estimate, and their initial guesses.
+    parameter_bounds : ndarray (n_parameters, 2)
+        ``[lower, upper]`` per parameter (``-inf`` / ``inf``: no bound); every
+        output-error fit keeps the parameters inside.
     offsets : bool
         Estimate a constant offset per measured channel.
     """
@@ -117,6 +123,10 @@ class Study:
     parameter_init: np.ndarray = field(default_factory=lambda: np.zeros(0))
     offsets: bool = False
     min_effect: float = 0.01
+    parameter_bounds: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    error_states_note: str = ""
+    noise_description: str = ""
+    noise_doubt: str | None = None
 
     @property
     def n_inputs(self) -> int:
@@ -216,29 +226,27 @@ def _estimator(mme, given: dict, u, input_hold, parameters: dict):
     return MME(u=u, input_hold=input_hold, **given)
 
 
-def _parameters(parameters) -> dict:
-    """``{name: initial value}``, checked (names are strings, values finite)."""
+def _parameters(parameters) -> tuple:
+    """``({name: initial guess}, bounds (n, 2))``, checked.
+
+    Each value is a number (unbounded), ``(guess, lower, upper)`` with None
+    for a missing bound, or a :class:`~.parameters.Parameter`; the bounds
+    are ``-inf`` / ``inf`` where there are none (:func:`parameter_spec`).
+    """
     if parameters is None:
-        return {}
+        return {}, np.zeros((0, 2))
     if not isinstance(parameters, dict) or not parameters:
         raise TypeError(
             "parameters must be a non-empty dict {name: initial guess}, e.g. "
-            f"{{'k': 1.0, 'c': 0.1}}; got {parameters!r}"
+            f"{{'k': 1.0, 'c': 0.1}} or {{'M': (90.0, 0, None)}}; got {parameters!r}"
         )
-    out = {}
+    out, bounds = {}, []
     for name, value in parameters.items():
         if not isinstance(name, str) or not name:
             raise TypeError(f"parameters: names must be strings, got {name!r}")
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise TypeError(
-                f"parameters: {name} must be a number, got {value!r}"
-            ) from None
-        if not np.isfinite(v):
-            raise ValueError(f"parameters: {name} must be finite, got {value!r}")
-        out[name] = v
-    return out
+        out[name], lower, upper = parameter_spec(name, value)
+        bounds.append((lower, upper))
+    return out, np.array(bounds, dtype=float)
 
 
 class AtParameters:
@@ -369,6 +377,47 @@ def _check_options(alpha, min_effect, refit, input_hold, offsets, window):
     return alpha, min_effect, int(window)
 
 
+def _noise_record(problem) -> dict:
+    """How the noise was found (the report's first lines) and, when the data
+    cannot tell it (a quantised channel at its quantisation level), why."""
+    diagnostics = getattr(problem, "noise_diagnostics", None)
+    variance = np.diag(np.asarray(problem.noise_covariance, dtype=float))
+    description = describe_noise(variance, diagnostics)
+    doubt = None
+    if diagnostics:
+        undetermined = [d for d in diagnostics if not d.determined]
+        if undetermined:
+            doubt = "the measurement noise cannot be told from the data: " + "; ".join(
+                f"channel {d.channel} is quantised with step "
+                f"{d.quantisation_step:.3g} and its noise estimate is at the "
+                "quantisation level"
+                for d in undetermined
+            )
+    return {"noise_description": description, "noise_doubt": doubt}
+
+
+def _place_model_error(est, y, t, u, n_states, state_names) -> str:
+    """With ``error_states`` omitted, every equation but kinematic identities
+    (:mod:`.placement`); the sentence the report shows ("" if all)."""
+    if est.error_states is not None:
+        return ""
+    from ..core.model import as_model_function
+
+    model = as_model_function(est.assumed_model, n_states)
+    scale = np.full(n_states, float(np.nanstd(y)) or 1.0)
+    if est.measured is not None:
+        for col, i in enumerate(np.atleast_1d(est.measured)):
+            scale[int(i)] = float(np.nanstd(y[:, col])) or 1.0
+    if callable(u):
+        u = np.asarray(u(t), dtype=float).reshape(t.size, -1)
+    elif u is not None:
+        u = np.asarray(u, dtype=float).reshape(t.size, -1)
+    states, note = default_error_states(model, n_states, t, u, scale, state_names)
+    if note:
+        est.set_params(error_states=states)
+    return note
+
+
 def _check_estimator(est, y) -> int:
     """The estimator's settings that the study reads itself; ``n_states``."""
     n_states = est.n_states
@@ -439,7 +488,7 @@ def check_study(
         alpha, min_effect, refit, input_hold, offsets, validation_window
     )
     u = _inputs_array(u, n_samples)
-    params = _parameters(parameters)
+    params, bounds = _parameters(parameters)
     if params and mme is not None:
         raise ValueError(
             "parameters need assumed_model=f(x, t, u, p) given to discover, not mme="
@@ -470,6 +519,7 @@ def check_study(
             f"{n_states} (one per state)"
         )
     _check_size(library, y, n_states + n_inputs)
+    placement = _place_model_error(est, y, t, u_est, int(n_states), state_names)
     problem = est.check(y, t, u_est)  # shapes, observability, first evaluation
     est.set_params(noise_variance=problem.noise_covariance)  # 'auto' resolved once
     measured, channel_names = _channels(est, n_states, state_names, y.shape[1])
@@ -504,4 +554,7 @@ def check_study(
         parameter_init=np.array(list(params.values()), dtype=float),
         offsets=bool(offsets),
         min_effect=float(min_effect),
+        parameter_bounds=bounds,
+        error_states_note=placement,
+        **_noise_record(problem),
     )

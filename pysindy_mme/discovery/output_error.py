@@ -33,11 +33,18 @@ inverted, so parameters of any scale are handled), ``s^2 = cost / dof``.
 A candidate term's score test (the partial F it would have, linearised)
 comes from the same factorisation: its one-interval sensitivities ``B`` are
 the forcing of one extra solve.
+
+Bounds on the physical parameters (``bounds``): every Gauss-Newton step
+solves its subproblem inside them (:meth:`MMESmoother._bounded_step`), so no
+iterate leaves the box. A parameter that ends on a bound the data push it
+against is ``at_bound``: it is not free there, so the statistics (its
+standard error NaN, the others' covariance, the score tests) are those of
+the model with it held at the bound.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -72,7 +79,8 @@ class OutputErrorFit:
     n_residuals : int
         Observed measurement values.
     n_free : int
-        Fitted quantities: initial state + parameters.
+        Fitted quantities: initial state + parameters (those held on a bound,
+        ``at_bound``, not counted: they are not free there).
     covariance : ndarray (p, p)
         ``s^2 Sc^-1`` with ``s^2 = cost / dof`` (NaN if not identifiable).
     x0_covariance : ndarray (n, n)
@@ -83,6 +91,11 @@ class OutputErrorFit:
     rank_deficient : bool
         Some combination of parameters is not determined by the data.
     n_iter : int
+    at_bound : ndarray of bool (n_physical,)
+        The physical parameter ended on one of its bounds (within a relative
+        1e-12; the solver leaves a parameter there only while the data push
+        it outwards). Its standard error is NaN and the covariance of the
+        others is computed with it held there.
     """
 
     slots: tuple
@@ -101,6 +114,18 @@ class OutputErrorFit:
     _state: object = None
     _engine: object = None
     _inflation: float | None = None
+    at_bound: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    def __post_init__(self):
+        if self.at_bound.size != self.n_physical:
+            self.at_bound = np.zeros(self.n_physical, dtype=bool)
+
+    @property
+    def held(self) -> np.ndarray:
+        """Entries of ``theta`` held on a bound (``at_bound``, padded)."""
+        out = np.zeros(self.theta.size, dtype=bool)
+        out[: self.n_physical] = self.at_bound
+        return out
 
     def _covariances(self):
         # computed on first use: most trial fits are judged by their cost alone
@@ -221,6 +246,9 @@ class OutputErrorModel:
         0, or ``m``: a constant offset per measured channel.
     n_substeps : int
         RK4 steps per sample interval.
+    bounds : ndarray (n_physical, 2) or None
+        ``[lower, upper]`` per physical parameter (``-inf`` / ``inf``: none);
+        every fit keeps them inside. Coefficients and offsets are unbounded.
     """
 
     def __init__(
@@ -236,6 +264,7 @@ class OutputErrorModel:
         n_physical=0,
         n_offsets=0,
         n_substeps=1,
+        bounds=None,
     ):
         self.base = base
         self.n_states = int(n_states)
@@ -250,6 +279,16 @@ class OutputErrorModel:
         self.R = np.asarray(R, dtype=float)
         self.measurement = measurement
         self.n_substeps = int(n_substeps)
+        self.bounds = None
+        if bounds is not None:
+            bounds = np.asarray(bounds, dtype=float)
+            if bounds.shape != (self.n_physical, 2):
+                raise ValueError(
+                    f"bounds must have shape ({self.n_physical}, 2), got {bounds.shape}"
+                )
+            # no finite bound: no bounds (the free solver, bit for bit)
+            if np.any(np.isfinite(bounds)):
+                self.bounds = bounds
         self.n_residuals = int(np.isfinite(self.y).sum())
         #: variance inflation of the measurement noise (None: each fit's own)
         self.noise_inflation = None
@@ -282,7 +321,25 @@ class OutputErrorModel:
             tol=tol,
             theta_init=theta0,
             measurement_offsets=offsets,
+            theta_bounds=self._theta_bounds(model.n_params),
         )
+
+    def _theta_bounds(self, p):
+        """Bounds on all of ``theta`` (p, 2): the physical ones, then none."""
+        if self.bounds is None:
+            return None
+        out = np.tile([-np.inf, np.inf], (p, 1))
+        out[: self.n_physical] = self.bounds
+        return out
+
+    def _at_bound(self, theta):
+        """Which physical parameters of ``theta`` sit on a bound (rel. 1e-12)."""
+        if self.bounds is None:
+            return np.zeros(self.n_physical, dtype=bool)
+        value, bounds = theta[: self.n_physical, None], self.bounds
+        with np.errstate(invalid="ignore"):
+            close = np.abs(value - bounds) <= 1e-12 * np.abs(bounds)
+        return np.any(close & np.isfinite(bounds), axis=1)
 
     def fit(
         self, slots, theta0, x_start, max_iter: int = 50, tol: float = 1e-9
@@ -294,10 +351,16 @@ class OutputErrorModel:
         message says why), so that callers reject it instead of crashing.
         ``tol`` is the relative predicted decrease of the cost at which
         Gauss-Newton stops (1e-9 of a chi-square of ``N`` is far below one
-        unit: negligible for every test).
+        unit: negligible for every test). A ``theta0`` outside the bounds
+        starts from its projection onto them.
         """
         slots = tuple((int(i), int(c)) for i, c in slots)
         theta0 = np.asarray(theta0, dtype=float)
+        if self.bounds is not None:
+            theta0 = theta0.copy()
+            theta0[: self.n_physical] = np.clip(
+                theta0[: self.n_physical], self.bounds[:, 0], self.bounds[:, 1]
+            )
         solver = self._solver(slots, theta0, max_iter, tol)
         try:
             res = solver.solve(None, solver.start_from(x_start, theta0))
@@ -320,13 +383,14 @@ class OutputErrorModel:
                 f"; {res.nonfinite_trials} trial step(s) made the model blow up "
                 "(the line search stepped back)"
             )
+        at_bound = self._at_bound(res.theta)
         fit = OutputErrorFit(
             slots=slots,
             theta=res.theta,
             x=res.x,
             cost=float(res.measurement_cost),
             n_residuals=self.n_residuals,
-            n_free=self.n_states + res.theta.size,
+            n_free=self.n_states + res.theta.size - int(at_bound.sum()),
             converged=converged,
             message=message,
             rank_deficient=res.rank_deficient,
@@ -335,6 +399,7 @@ class OutputErrorModel:
             n_offsets=self.n_offsets,
             _state=(solver, res),
             _engine=self,
+            at_bound=at_bound,
         )
         return fit
 
@@ -415,6 +480,7 @@ class OutputErrorModel:
             self.n_physical,
             self.n_offsets,
             n_substeps,
+            self.bounds,
         )
         other.noise_inflation = self.noise_inflation
         return other
@@ -446,14 +512,30 @@ class OutputErrorModel:
             return np.full(p, np.inf), np.inf
         rhs = np.zeros((solver.N, 2 * solver.n))
         rhs[:-1, solver.n :] = -change
-        sol = solve_reduced(fac, E, D, rhs, np.zeros(p))
+        E, D, free = self._free_border(fit, E, D)
+        sol = solve_reduced(fac, E, D, rhs, np.zeros(E.shape[2]))
+        dtheta = np.zeros(p)  # a parameter held on its bound stays there
+        dtheta[free] = sol.dtheta
         sd = np.sqrt(np.mean(np.diag(self.R))) / solver.unit
-        return sol.dtheta, float(np.max(np.abs(sol.z[:, : solver.n]))) / sd
+        return dtheta, float(np.max(np.abs(sol.z[:, : solver.n]))) / sd
 
     # ------------------------------------------------------------ statistics
     def _kkt_at(self, fit):
         solver, res = fit._state
         return solver, res, solver.kkt_system(res._lin)
+
+    @staticmethod
+    def _free_border(fit, E, D):
+        """``(E, D, free)`` without the parameters held on a bound.
+
+        A parameter at a bound the data push it against is not free: to first
+        order it stays there, so the statistics are those of the model with
+        it fixed (its columns of the border dropped).
+        """
+        free = ~fit.held
+        if free.all():
+            return E, D, free
+        return E[:, :, free], D[np.ix_(free, free)], free
 
     def _covariance(self, fit):
         """``s^2 Sc^-1`` and the initial state's covariance, at the solution.
@@ -461,7 +543,9 @@ class OutputErrorModel:
         The inverse of the bordered KKT matrix holds, in its parameter block,
         ``Sc^-1`` and, in the ``x_0`` block, the covariance of the initial
         state (both in units of the Hessian of ``J / 2``): ``n`` extra solves.
-        A direction the data do not determine gets NaN.
+        A direction the data do not determine gets NaN, and so does a
+        parameter held on a bound (``at_bound``): the rest is computed with
+        it fixed there.
         """
         p, n = fit.theta.size, self.n_states
         nan = (np.full((p, p), np.nan), np.full((n, n), np.nan))
@@ -474,21 +558,26 @@ class OutputErrorModel:
         unit = solver.unit
         b = np.zeros((solver.N, 2 * n, n))
         b[0, :n, :] = np.eye(n)
-        sol = solve_reduced(fac, E, D, b, np.zeros((p, n)))
+        E, D, free = self._free_border(fit, E, D)
+        sol = solve_reduced(fac, E, D, b, np.zeros((E.shape[2], n)))
         s2 = fit.residual_variance * fit.inflation
         x0_cov = sol.z[0, :n, :] * s2 * unit**2  # internal units -> user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
         if not p:
             return np.zeros((0, 0)), x0_cov
         inverse, _ = equilibrated_inverse(sol.Sc)
-        cov = inverse * s2
+        sub = inverse * s2
         bad = undetermined(sol.Sc)
         if np.any(bad):
             # a direction the data do not determine (two parameters doing one
             # job): the variances of the parameters in it are unknown
-            cov[bad, :] = np.nan
-            cov[:, bad] = np.nan
+            sub[bad, :] = np.nan
+            sub[:, bad] = np.nan
             fit.rank_deficient = True
+        if free.all():
+            return sub, x0_cov
+        cov = np.full((p, p), np.nan)
+        cov[np.ix_(free, free)] = sub
         return cov, x0_cov
 
     def scores(self, fit: OutputErrorFit, candidates):
@@ -510,6 +599,9 @@ class OutputErrorModel:
             return zeros, zeros
         n, N = solver.n, solver.N
         lin = res._lin
+        # the model's parameters are re-optimised, except those held on a bound
+        E, D, free = self._free_border(fit, E, D)
+        M = solver._M[:, free]
         group = max(1, _SCORE_ELEMENTS // max(N * n, 1))
         num = np.zeros(k_c)
         den = np.zeros(k_c)
@@ -526,8 +618,8 @@ class OutputErrorModel:
                 if H.ndim == 2
                 else (np.einsum("kai,kig->kag", H, dx))
             )
-            if solver.p:
-                dy = dy + np.einsum("ap,pg->ag", solver._M, sol.dtheta)[None]
+            if M.shape[1]:
+                dy = dy + np.einsum("ap,pg->ag", M, sol.dtheta)[None]
             Rdy = np.einsum("kab,kbg->kag", solver.Rinv, dy)
             num[lo : lo + len(part)] = np.einsum("kag,ka->g", Rdy, lin.r)
             den[lo : lo + len(part)] = np.einsum("kag,kag->g", Rdy, dy)

@@ -17,7 +17,7 @@ __all__ = ["format_discovery"]
 def _header(res) -> list:
     t = res.t
     noise = ", ".join(sig(v, 3) for v in np.diag(res.noise_cov))
-    source = getattr(res.study, "noise_description", "") or "stated by the user"
+    source = res.study.noise_description or "stated by the user"
     inputs = f"; inputs: {', '.join(res.input_names)}" if res.input_names else ""
     out = [
         "pysindy-mme discovery report",

@@ -72,7 +72,13 @@ class ParameterEstimate:
     value : float
         Fitted jointly with the correction (the extended model's value).
     std_error, ci_low, ci_high : float
-        Of ``value`` (95 % interval; NaN when not determined).
+        Of ``value`` (95 % interval; NaN when not determined, or at a bound).
+    lower, upper : float
+        The user's bounds (``-inf`` / ``inf``: none).
+    at_bound : bool
+        ``value`` is on a bound the data push it against: the data would
+        take it further, so it is a limit, not an estimate (its standard
+        error is NaN, the others' are computed with it held there).
     """
 
     name: str
@@ -82,6 +88,9 @@ class ParameterEstimate:
     std_error: float
     ci_low: float
     ci_high: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    at_bound: bool = False
 
     @property
     def change(self) -> float:
@@ -192,6 +201,7 @@ class Discovery:
         fit = self.extended_fit or self.assumed.fit
         ci = fit.confidence_intervals()
         se = fit.std_errors
+        bounds = self.study.parameter_bounds
         out = {}
         for k, name in enumerate(names):
             out[name] = ParameterEstimate(
@@ -202,6 +212,9 @@ class Discovery:
                 std_error=float(se[k]) if se[k] > 0 else float("nan"),
                 ci_low=float(ci[k, 0]),
                 ci_high=float(ci[k, 1]),
+                lower=float(bounds[k, 0]) if len(bounds) else -np.inf,
+                upper=float(bounds[k, 1]) if len(bounds) else np.inf,
+                at_bound=bool(fit.at_bound[k]),
             )
         return out
 

@@ -238,7 +238,7 @@ def _quantity_names(study, proposals, fit) -> list:
 
 def _evidence(study, assumed, confirmation, gain, names, trade_offs) -> Evidence:
     fit = confirmation.fit or assumed.fit
-    noise = getattr(study, "noise_doubt", None)
+    noise = study.noise_doubt
     k0 = len(study.parameter_names)
     return Evidence(
         contradicted=bool(assumed.p_value < study.alpha),

@@ -14,7 +14,13 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from pysindy_mme.core.noise import NoiseDiagnostics, _spectra, estimate_noise_variance
+from pysindy_mme.core.noise import (
+    NoiseDiagnostics,
+    _spectra,
+    describe_noise,
+    estimate_noise_variance,
+    quantisation_step,
+)
 from pysindy_mme.differentiation.noise import difference_noise_variance
 from pysindy_mme.exceptions import DiscoveryWarning
 
@@ -340,3 +346,147 @@ def test_bad_input_names_the_argument(kwargs, exc, match):
     args = {"y": np.random.default_rng(0).standard_normal(1000), **kwargs}
     with pytest.raises(exc, match=match):
         estimate_noise_variance(**args)
+
+
+# --- quantised sensors -----------------------------------------------------------
+# An encoder with a 50 nm step on a positioning axis: a smooth position trace
+# (25 s at 1 kHz, spanning ~3e7 steps) rounded to the grid, as np.round(x / q) * q
+# gives it (values carry float representation error).
+
+STEP = 5e-8
+T_ENC = np.arange(25000) / 1000.0
+POSITION = 0.1 * np.sin(2 * np.pi * 0.5 * T_ENC) + 0.05 * T_ENC
+
+
+def encoder(noise_sd, seed=0, step=STEP):
+    rng = np.random.default_rng(seed)
+    return (
+        np.round((POSITION + noise_sd * rng.standard_normal(POSITION.size)) / step)
+        * step
+    )
+
+
+def test_quantised_channel_with_noise_above_the_step_is_determined():
+    var, (d,), caught = estimate(encoder(1e-5), t=T_ENC)
+    assert var[0] == pytest.approx(1e-10, rel=0.2)
+    assert d.quantisation_step == pytest.approx(STEP, rel=1e-3)
+    assert d.determined and d.reliable and not caught
+
+
+def test_quantised_channel_without_noise_is_not_determined():
+    var, (d,), caught = estimate(encoder(0.0), t=T_ENC)
+    assert d.quantisation_step == pytest.approx(STEP, rel=1e-3)
+    assert not d.determined and not d.reliable
+    assert var[0] >= STEP**2 / 12 * (1 - 1e-12) and var[0] == d.variance
+    assert "5e-08" in d.reason and "cannot be told from the quantisation" in d.reason
+    assert "noise variance" in d.reason  # tells the user to state it
+    assert [w.category for w in caught] == [DiscoveryWarning]
+    assert "5e-08" in str(caught[0].message)
+
+
+def test_noise_of_half_a_step_is_the_boundary():
+    """Factor 2 on step/sqrt(12): noise up to about half a step is undetermined."""
+    below = estimate(encoder(0.4 * STEP, seed=3), t=T_ENC)[1][0]
+    above = estimate(encoder(0.7 * STEP, seed=3), t=T_ENC)[1][0]
+    assert not below.determined and above.determined
+    assert above.quantisation_step == pytest.approx(STEP, rel=1e-3)
+
+
+def test_continuous_channels_are_not_quantised():
+    rng = np.random.default_rng(5)
+    noisy = POSITION + 1e-5 * rng.standard_normal(POSITION.size)
+    assert np.isnan(quantisation_step(noisy))
+    assert np.isnan(quantisation_step(POSITION))
+    assert np.isnan(quantisation_step(rng.standard_normal(200000)))
+    _, (d,), _ = estimate(noisy, t=T_ENC)
+    assert np.isnan(d.quantisation_step) and d.determined
+
+
+def test_few_random_values_are_not_called_a_grid():
+    rng = np.random.default_rng(6)
+    for n in (5, 6, 8, 12, 20, 50):
+        for _ in range(100):
+            assert np.isnan(quantisation_step(rng.uniform(0.0, 1.0, n)))
+
+
+def test_nan_holding_channel():
+    y = encoder(1e-5)
+    y[::7] = np.nan
+    y[1000:1500] = np.nan
+    assert quantisation_step(y) == pytest.approx(STEP, rel=1e-3)
+    var, (d,), _ = estimate(y, t=T_ENC)
+    assert d.quantisation_step == pytest.approx(STEP, rel=1e-3) and d.determined
+    assert var[0] == pytest.approx(1e-10, rel=0.2)
+
+
+@pytest.mark.parametrize(
+    "values, step",
+    [
+        # values ~0.1..0.5 m (float representation error), spanning 1.6e6 steps
+        (lambda k: np.round((0.3 + 0.2 * np.sin(k / 3000)) / 5e-8) * 5e-8, 5e-8),
+        # step 1e-3 on values ~1e3
+        (lambda k: 1e3 + np.round(2.0 * np.sin(k / 500) / 1e-3) * 1e-3, 1e-3),
+        # an ADC: 0..10 V with a step of 0.01 V
+        (lambda k: np.round((5 + 5 * np.sin(k / 700)) / 0.01) * 0.01, 0.01),
+        # signal spanning only 10^2 steps, with an offset off the grid's zero
+        (lambda k: 0.123 + np.round(50 * np.sin(k / 300)) * 0.25, 0.25),
+        # 10^7 steps spanned, few of the levels occur
+        (lambda k: np.round(5e6 * np.sin(k / 2000)) * 1e-7, 1e-7),
+    ],
+)
+def test_step_is_found_across_magnitudes(values, step):
+    y = values(np.arange(20000.0))
+    assert quantisation_step(y) == pytest.approx(step, rel=1e-6)
+
+
+def test_step_of_a_sparse_ramp_is_the_gcd_of_its_spacings():
+    """A ramp of 400.3 steps per sample: spacings of 400 and 401 steps only."""
+    y = np.round((0.123 + np.arange(25000) * 400.3 * STEP) / STEP) * STEP
+    assert quantisation_step(y) == pytest.approx(STEP, rel=1e-6)
+
+
+def test_few_distinct_values():
+    assert np.isnan(quantisation_step(np.full(1000, 3.0)))  # constant
+    assert np.isnan(quantisation_step([0.0, 1.0] * 50))  # two levels: no grid seen
+    # three levels whose step needs a reduction: too little evidence
+    assert np.isnan(quantisation_step([0.0, 3.0, 5.0] * 30))
+    assert np.isnan(quantisation_step([np.nan] * 10))
+    assert quantisation_step(np.tile(np.arange(10) * 0.1, 20)) == pytest.approx(0.1)
+
+
+def test_a_few_glitches_are_allowed_but_not_many():
+    rng = np.random.default_rng(8)
+    y = encoder(1e-5)
+    glitched = y.copy()
+    idx = rng.choice(y.size, 20, replace=False)  # 0.08 %
+    glitched[idx] += rng.uniform(0.0, STEP, idx.size)
+    assert quantisation_step(glitched) == pytest.approx(STEP, rel=1e-3)
+    idx = rng.choice(y.size, 50, replace=False)  # 0.2 %
+    y[idx] += rng.uniform(0.0, STEP, idx.size)
+    assert np.isnan(quantisation_step(y))
+
+
+def test_channels_are_checked_for_quantisation_separately():
+    rng = np.random.default_rng(9)
+    y = np.column_stack([encoder(0.0), POSITION + 1e-5 * rng.standard_normal(25000)])
+    var, diags, _ = estimate(y, t=T_ENC)
+    assert not diags[0].determined and diags[1].determined
+    assert np.isnan(diags[1].quantisation_step)
+    assert var[1] == pytest.approx(1e-10, rel=0.2)
+
+
+def test_describe_noise():
+    var, diags, _ = estimate(encoder(1e-5), t=T_ENC)
+    text = describe_noise(var, diags)
+    assert text.startswith("estimated from the data") and "spectral floor" in text
+    assert "Hz" in text and "step 5e-08" in text and "\n" not in text
+    var, diags, _ = estimate(encoder(0.0), t=T_ENC)
+    assert "NOT determined" in describe_noise(var, diags)
+    assert "step 5e-08" in describe_noise(var, diags)
+    rng = np.random.default_rng(10)
+    y = np.column_stack([encoder(1e-5), POSITION + 1e-5 * rng.standard_normal(25000)])
+    var, diags, _ = estimate(y, t=T_ENC)
+    text = describe_noise(var, diags)
+    assert "channel 0" in text and "channel 1" in text
+    assert text.count("quantised") == 1
+    assert describe_noise(np.diag([1e-6, 4e-6]), None) == "stated: sd 0.001, 0.002"
