@@ -124,6 +124,7 @@ def output_error_engine(study, features, substeps) -> OutputErrorModel:
         n_physical=study.n_parameters,
         n_offsets=study.y.shape[1] if study.offsets else 0,
         n_substeps=substeps,
+        bounds=study.parameter_bounds,
     )
 
 
@@ -315,7 +316,8 @@ def step_size_check(
     """
     dtheta, dx = engine.integrator_effect(fit)
     se = fit.std_errors
-    if dx < 0.1 and np.all(np.abs(dtheta) < 0.1 * np.where(np.isfinite(se), se, 0.0)):
+    # <=: a parameter held at its bound has no standard error and no move
+    if dx < 0.1 and np.all(np.abs(dtheta) <= 0.1 * np.where(np.isfinite(se), se, 0.0)):
         return None
     finer = engine.with_substeps(2 * engine.n_substeps)
     check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=20)

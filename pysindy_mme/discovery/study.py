@@ -124,14 +124,22 @@ def discover(
         Leading samples of the validation record used to estimate the initial
         state; the validation RMSE is taken over the rest.
     parameters : dict, optional
-        Grey box: the assumed model's unknown parameters with initial guesses,
-        ``{"k": 1.0, "c": 0.1}``; ``assumed_model`` is then called as
-        ``f(x, t, u, p)`` (``u`` None without inputs) with ``p`` a dict of
-        their current values. They are fitted to the measurements first
-        (step 1), MME runs with the fitted values, and they are refitted
-        jointly with the correction; the report gives them with confidence
-        intervals apart from the missing effects. A library term that only
-        re-estimates one of them cannot enter (it is collinear with it).
+        Grey box: the assumed model's unknown parameters, ``{name: spec}``;
+        ``assumed_model`` is then called as ``f(x, t, u, p)`` (``u`` None
+        without inputs) with ``p`` a dict of their current values. Each spec
+        is the initial guess (a number, unbounded: ``{"k": 1.0, "c": 0.1}``),
+        a tuple ``(guess, lower, upper)`` with None for a missing bound
+        (``{"M": (90.0, 0, None)}``), or a :class:`Parameter`
+        (``Parameter(90.0, lower=1.0)``). Bounds are closed and every fit
+        keeps the parameters inside them. The parameters are fitted to the
+        measurements first (step 1), MME runs with the fitted values, and
+        they are refitted jointly with the correction; the report gives them
+        with confidence intervals apart from the missing effects. A
+        parameter that ends on a bound is reported ``at_bound``: its value
+        is a limit, not an estimate (no standard error; the others' are
+        computed with it held there), and the conclusion names it, as it
+        names a parameter that moved more than tenfold from its guess. A
+        library term that only re-estimates a parameter cannot enter.
     min_effect : float, default 0.01
         Practical significance: every identified term must remove at least
         this share of the misfit of the model without it (on a long record
