@@ -6,7 +6,8 @@ Prints, per case, how often ``discover`` names exactly the hidden terms, the
 median largest coefficient error after the output-error refit, the median
 RMSE of the extended-model simulation against the noise-free truth (all
 states, including unmeasured ones), false discoveries in the null case, and
-the time per study. These are the figures quoted in the README.
+the conclusion each study reached (``Discovery.conclusion``), and the time
+per study. These are the figures quoted in the README.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from collections import Counter
 
 import numpy as np
 import pysindy as ps
@@ -37,6 +39,7 @@ def linear_oscillator(x, t, u, p):
 
 def study(system, library_factory, seeds, assumed=None, **options):
     exact, errors, rmse, times, found_any = 0, [], [], [], 0
+    conclusions = Counter()
     ((state, truth),) = system.hidden_terms.items()
     noise = options.pop("noise", system.noise_variance)
     error_states = options.pop("error_states", list(system.error_states))
@@ -59,6 +62,7 @@ def study(system, library_factory, seeds, assumed=None, **options):
                 **options,
             )
         times.append(time.perf_counter() - start)
+        conclusions[res.conclusion] += 1
         found = res.terms[state]
         others = any(terms for s, terms in res.terms.items() if s != state)
         found_any += bool(found) or others
@@ -66,7 +70,11 @@ def study(system, library_factory, seeds, assumed=None, **options):
             exact += 1
             errors.append(max(abs(found[k] - v) for k, v in truth.items()))
             rmse.append(np.sqrt(np.mean((res.extended_simulation - data.x) ** 2)))
-    return exact, errors, rmse, times, found_any
+    return exact, errors, rmse, times, found_any, conclusions
+
+
+def _conclusions(counts) -> str:
+    return ", ".join(f"{k} {v}" for k, v in counts.most_common())
 
 
 def main():
@@ -133,22 +141,27 @@ def main():
     print(f"discover() over {n} noise seeds per case (2-core machine)\n")
     print(
         "| case | exact terms | median largest coef. error | "
-        "median RMSE to truth | s / study |"
+        "median RMSE to truth | conclusions | s / study |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for case in cases:
         label, system, lib, assumed = case[:4]
         options = case[4] if len(case) > 4 else {}
-        exact, errors, rmse, times, _ = study(system, lib, seeds, assumed, **options)
+        exact, errors, rmse, times, _, conc = study(
+            system, lib, seeds, assumed, **options
+        )
         err = f"{np.median(errors):.4f}" if errors else "n/a"
         rm = f"{np.median(rmse):.4f}" if rmse else "n/a"
-        print(f"| {label} | {exact}/{n} | {err} | {rm} | {np.mean(times):.2f} |")
-    _, _, _, times, found_any = study(
+        print(
+            f"| {label} | {exact}/{n} | {err} | {rm} | {_conclusions(conc)} | "
+            f"{np.mean(times):.2f} |"
+        )
+    _, _, _, times, found_any, conc = study(
         vdp, lambda: ps.PolynomialLibrary(3), seeds, assumed=vdp.true_model
     )
     print(
         f"| Null: Van der Pol, assumed model = truth | false discoveries "
-        f"{found_any}/{n} | | | {np.mean(times):.2f} |"
+        f"{found_any}/{n} | | | {_conclusions(conc)} | {np.mean(times):.2f} |"
     )
 
 

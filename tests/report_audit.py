@@ -157,10 +157,15 @@ def audit_numbers(res) -> None:
         return
     if study.validation is not None:
         y_v, t_v, u_v = study.validation
-    else:  # a held-out stretch: the trailing samples of the record
+    else:  # a held-out stretch: the first or last samples of the record
         n_v = next(iter(gain.validation_runs.values())).x.shape[0]
-        y_v, t_v = study.y[-n_v:], study.t[-n_v:]
-        u_v = None if study.u is None else study.u[-n_v:]
+        part = (
+            slice(0, n_v)
+            if "the first" in gain.validation_source
+            else slice(-n_v, None)
+        )
+        y_v, t_v = study.y[part], study.t[part]
+        u_v = None if study.u is None else study.u[part]
     for name, reported in (
         ("assumed", gain.validation_rmse_assumed),
         ("extended", gain.validation_rmse_extended),

@@ -432,51 +432,67 @@ HELD_OUT_FRACTION = 0.2
 MIN_HELD_OUT = 30
 
 
-def held_out_split(study) -> tuple | None:
-    """``(start, stop)`` of the trailing stretch to hold out, or None.
+def held_out_split(study, assumed_run=None) -> tuple | None:
+    """``(start, stop)`` of the stretch to hold out, or None.
 
-    The last ``HELD_OUT_FRACTION`` of the record (at least the validation
-    window plus ``MIN_HELD_OUT`` samples), when what is left for fitting
-    keeps at least four times as many samples.
+    ``HELD_OUT_FRACTION`` of the record (at least the validation window
+    plus ``MIN_HELD_OUT`` samples) at one of its ends, when what is left for
+    fitting keeps at least four times as many samples. Which end: the one
+    where the assumed model's free run (``assumed_run``) misses the data
+    more, so that the stretch holds something to explain (a decaying
+    transient shows its effect at the start, not at the end). The choice
+    reads the assumed model only, never the extended one; the end stretch
+    is the default.
     """
     n = study.t.size
     window = min(study.validation_window, max(2, n // 20))
     size = max(int(round(HELD_OUT_FRACTION * n)), window + MIN_HELD_OUT)
     if n - size < 4 * size or size - window < MIN_HELD_OUT:
         return None
+    if assumed_run is not None:
+        r = np.asarray(study.y, float) - _measure(study)(assumed_run.x)
+        w = np.diag(np.linalg.inv(study.noise_cov))
+        with np.errstate(all="ignore"):
+            first = np.nanmean(r[:size] ** 2 * w)
+            last = np.nanmean(r[-size:] ** 2 * w)
+        if np.isfinite(first) and np.isfinite(last) and first > last:
+            return 0, size
     return n - size, n
 
 
-def held_out_runs(study, fits: dict, build_extended, features, substeps):
+def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=None):
     """Both models refitted without a held-out stretch, then run free on it.
 
     The structure (the kept terms) is the study's; the parameters,
     coefficients and initial states are refitted on the rest of the record
-    only, so the stretch is never used for fitting. Returns ``(runs,
-    source, window)`` or None when the record is too short to spare one.
-    ``build_extended(fit) -> model`` makes the printed model of a fit.
+    only, so the stretch is never used for fitting. Returns ``(runs, source,
+    window, converged)`` or None when the record is too short to spare one.
+    ``build_extended(fit) -> model`` makes the printed model of a fit;
+    ``runs``: the in-sample free runs (the assumed one picks the stretch).
     """
     from dataclasses import replace
 
-    split = held_out_split(study)
+    split = held_out_split(study, None if runs is None else runs["assumed"])
     if split is None:
         return None
     start, stop = split
+    n = study.t.size
+    keep = slice(stop, n) if start == 0 else slice(0, start)
     window = min(study.validation_window, max(2, (stop - start) // 5))
     u = study.u
-    head = replace(
+    rest = replace(
         study,
-        y=study.y[:start],
-        t=study.t[:start],
-        u=None if u is None else u[:start],
-        inputs=study.inputs.subset(0, start),
-        x_init=study.x_init[:start],
+        y=study.y[keep],
+        t=study.t[keep],
+        u=None if u is None else u[keep],
+        inputs=study.inputs.subset(keep.start, keep.stop),
+        x_init=study.x_init[keep],
         validation_window=window,
     )
-    engine = output_error_engine(head, features, substeps)
+    engine = output_error_engine(rest, features, substeps)
     a, e = fits["assumed"], fits["extended"]
-    refit_a = engine.fit((), a.theta, a.x[:start])
-    refit_e = engine.fit(e.slots, e.theta, e.x[:start]) if e.slots else refit_a
+    refit_a = engine.fit((), a.theta, a.x[keep])
+    refit_e = engine.fit(e.slots, e.theta, e.x[keep]) if e.slots else refit_a
     models = {
         "assumed": study.model_at(refit_a.physical),
         "extended": build_extended(refit_e) if e.slots else None,
@@ -484,14 +500,16 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps):
     if models["extended"] is None:
         models["extended"] = models["assumed"]
     record = (
-        study.y[start:],
-        study.t[start:],
-        None if u is None else u[start:],
+        study.y[start:stop],
+        study.t[start:stop],
+        None if u is None else u[start:stop],
     )
-    runs = validation_runs(head, models, features, substeps, record)
+    runs = validation_runs(rest, models, features, substeps, record)
+    where = "first" if start == 0 else "last"
     source = (
-        f"a held-out stretch (t = {sig(study.t[start])} .. {sig(study.t[-1])}, "
-        f"the last {stop - start} samples; both models refitted without it)"
+        f"a held-out stretch (t = {sig(study.t[start])} .. "
+        f"{sig(study.t[stop - 1])}, the {where} {stop - start} samples; both "
+        "models refitted without it)"
     )
     converged = refit_a.converged and refit_e.converged
     return runs, source, window, converged

@@ -227,7 +227,9 @@ def _hold_out(study, gain, fits, proposals, confirmation, x_hat, substeps) -> No
         slots = Confirmation(list(confirmation.slots), fit)
         return _extended_model(study, proposals, slots, fit, x_hat)
 
-    held = held_out_runs(study, fits, build, proposals.evaluate, substeps)
+    held = held_out_runs(
+        study, fits, build, proposals.evaluate, substeps, gain.in_sample_runs
+    )
     if held is None:
         return
     runs, source, window, converged = held
