@@ -283,7 +283,13 @@ def _undetermined(fit, names) -> list:
     cov = np.asarray(fit.covariance[:k, :k], float)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     out = []
+    held = np.zeros(k, dtype=bool)
+    at_bound = getattr(fit, "at_bound", None)
+    if at_bound is not None:  # a limit, not an estimate: named as on its bound
+        held[: min(k, len(at_bound))] = np.asarray(at_bound, bool)[:k]
     for j in range(k):
+        if held[j]:
+            continue
         if not np.isfinite(se[j]) or se[j] == 0.0:
             out.append(f"{names[j]} is not determined by the data (no standard error)")
         elif se[j] > abs(theta[j]):
