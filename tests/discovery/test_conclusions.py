@@ -190,21 +190,23 @@ def check_pendulum_parameter_at_bound(res):
     )
 
 
-def paper_van_der_pol():
-    vdp = van_der_pol()
-    data = vdp.measure(0)
+def _van_der_pol_study(data, **kwargs):
     return _quiet(
         discover,
         data.y,
         data.t,
-        assumed_model=vdp.assumed_model,
+        assumed_model=van_der_pol().assumed_model,
         n_states=2,
         measured=[0],
         noise_variance=0.01,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["x1", "x2"],
+        **kwargs,
     )
+
+
+def paper_van_der_pol():
+    return _van_der_pol_study(van_der_pol().measure(0), feature_names=["x1", "x2"])
 
 
 def check_paper_van_der_pol(res):
@@ -250,20 +252,7 @@ def check_refit_not_converged(res):
 
 
 def too_short_to_hold_out():
-    vdp = van_der_pol()
-    t = np.linspace(0, 10, 81)
-    data = vdp.measure(0, t=t)
-    return _quiet(
-        discover,
-        data.y,
-        data.t,
-        assumed_model=vdp.assumed_model,
-        n_states=2,
-        measured=[0],
-        noise_variance=0.01,
-        error_states=[1],
-        feature_library=ps.PolynomialLibrary(degree=3),
-    )
+    return _van_der_pol_study(van_der_pol().measure(0, t=np.linspace(0, 10, 81)))
 
 
 def check_too_short_to_hold_out(res):
