@@ -83,17 +83,14 @@ def audited_studies(monkeypatch):
 
     from pysindy_mme.discovery import study as study_module
 
-    results = []
     original = study_module.run_study
 
     def audited(study, progress):
         res = original(study, progress)
         report_audit.audit(res)
-        results.append(res)
         return res
 
     monkeypatch.setattr(study_module, "run_study", audited)
-    return results
 
 
 def _audit_summary(terminalreporter):

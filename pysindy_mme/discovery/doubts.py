@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core.tables import sig
 
-__all__ = ["doubt_notes", "generalisation_note", "stop_reason"]
+__all__ = ["correlated_pairs", "doubt_notes", "generalisation_note", "stop_reason"]
 
 # A 95 % interval that reaches within half the value of zero: 1.96 * se > |v| / 2.
 WEAK_RELATIVE_SE = 0.25
@@ -48,7 +48,7 @@ def doubt_notes(fit, names) -> list:
         rel = se / np.abs(theta)
     undetermined = ~np.isfinite(rel)
     weak = np.isfinite(rel) & (rel > WEAK_RELATIVE_SE)
-    pairs = _look_alikes(cov, names, undetermined)
+    pairs = correlated_pairs(cov, names, undetermined)
 
     notes = []
     if not fit.converged:
@@ -151,8 +151,11 @@ def _by_doubt(names, rel, mask) -> str:
     return _join(shown) + (f" and {more} more" if more > 0 else "")
 
 
-def _look_alikes(cov, names, undetermined) -> list:
-    """(name, name, correlation) of estimate pairs beyond the threshold."""
+def correlated_pairs(
+    cov, names, undetermined, limit=LOOK_ALIKE_CORRELATION, most=MAX_NAMED
+) -> list:
+    """(name, name, correlation) of estimate pairs beyond ``limit``, the most
+    correlated first (``most`` of them; None: all)."""
     ok = np.flatnonzero(~undetermined & (np.diag(cov) > 0))
     if ok.size < 2:
         return []
@@ -162,10 +165,10 @@ def _look_alikes(cov, names, undetermined) -> list:
     pairs = []
     for a in range(ok.size):
         for b in range(a + 1, ok.size):
-            if abs(corr[a, b]) > LOOK_ALIKE_CORRELATION:
+            if abs(corr[a, b]) > limit:
                 pairs.append((names[ok[a]], names[ok[b]], float(corr[a, b])))
     pairs.sort(key=lambda p: -abs(p[2]))
-    return pairs[:MAX_NAMED]
+    return pairs if most is None else pairs[:most]
 
 
 def _join(items) -> str:

@@ -101,7 +101,9 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
     """
     n = engine.n_states
     K = min(engine.t.size, MAX_SAMPLES)
-    if K < 3 or not np.all(np.isfinite(fit.x[:K])):
+    # with no fitted constants only the initial states could trade off, and a
+    # state nothing measured depends on is refused before the study starts
+    if fit.theta.size == 0 or K < 3 or not np.all(np.isfinite(fit.x[:K])):
         return []
     theta = np.asarray(fit.theta, dtype=float)
     n_dyn = theta.size - engine.n_offsets

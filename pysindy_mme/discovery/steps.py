@@ -46,6 +46,7 @@ __all__ = [
     "in_sample_run",
     "held_out_runs",
     "held_out_split",
+    "hold_out",
 ]
 
 
@@ -493,12 +494,11 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     a, e = fits["assumed"], fits["extended"]
     refit_a = engine.fit((), a.theta, a.x[keep])
     refit_e = engine.fit(e.slots, e.theta, e.x[keep]) if e.slots else refit_a
+    assumed_model = study.model_at(refit_a.physical)
     models = {
-        "assumed": study.model_at(refit_a.physical),
-        "extended": build_extended(refit_e) if e.slots else None,
+        "assumed": assumed_model,
+        "extended": build_extended(refit_e) if e.slots else assumed_model,
     }
-    if models["extended"] is None:
-        models["extended"] = models["assumed"]
     record = (
         study.y[start:stop],
         study.t[start:stop],
@@ -513,6 +513,19 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     )
     converged = refit_a.converged and refit_e.converged
     return runs, source, window, converged
+
+
+def hold_out(study, gain, fits, build_extended, features, substeps) -> None:
+    """Out-of-sample numbers on ``gain`` from a held-out stretch (no
+    validation record; nothing when the record cannot spare one)."""
+    held = held_out_runs(
+        study, fits, build_extended, features, substeps, gain.in_sample_runs
+    )
+    if held is None:
+        return
+    runs, source, window, converged = held
+    _set_out_of_sample(gain, runs, window, source)
+    gain.held_out_converged = bool(converged)
 
 
 def _offsets(study, fit):

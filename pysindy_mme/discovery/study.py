@@ -14,8 +14,7 @@ from ..core.progress import Progress
 from ..core.tables import p_value, sig
 from ..exceptions import DiscoveryWarning
 from .conclusion import RUNAWAY_FACTOR, TRADE_OFF_CORRELATION, Evidence, conclude
-from .confirm import Confirmation
-from .doubts import doubt_notes, generalisation_note
+from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .extended import ExtendedModel
 from .identifiability import exact_trade_offs
 from .inputs import check_study
@@ -23,12 +22,11 @@ from .propose import propose_terms
 from .result import Discovery, TermEstimate
 from .statistics import residual_inflation
 from .steps import (
-    _set_out_of_sample,
     baseline,
     confirm_on_measurements,
     estimate_model_error,
     fit_assumed_model,
-    held_out_runs,
+    hold_out,
     measure_gain,
     output_error_engine,
     rk4_substeps,
@@ -181,12 +179,19 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     progress.stage(f"4. confirmed {len(confirmation.slots)} term(s)")
     extended_fit = confirmation.fit or assumed.fit
-    extended = _extended_model(study, proposals, confirmation, extended_fit, estimate.x)
+    extended = _extended_model(study, proposals, extended_fit, estimate.x)
     fits = {"assumed": assumed.fit, "extended": extended_fit}
     models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
     if study.validation is None and confirmation.slots:
-        _hold_out(study, gain, fits, proposals, confirmation, estimate.x, substeps)
+        hold_out(
+            study,
+            gain,
+            fits,
+            lambda fit: _extended_model(study, proposals, fit, estimate.x),
+            proposals.evaluate,
+            substeps,
+        )
     progress.stage("5. gain measured")
     notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
     terms, estimates = _terms(study, proposals, confirmation)
@@ -218,23 +223,6 @@ def run_study(study, progress: Progress) -> Discovery:
         advice=list(conclusion.advice),
         trade_offs=trade_offs,
     )
-
-
-def _hold_out(study, gain, fits, proposals, confirmation, x_hat, substeps) -> None:
-    """Out-of-sample numbers from a held-out stretch (no validation record)."""
-
-    def build(fit):
-        slots = Confirmation(list(confirmation.slots), fit)
-        return _extended_model(study, proposals, slots, fit, x_hat)
-
-    held = held_out_runs(
-        study, fits, build, proposals.evaluate, substeps, gain.in_sample_runs
-    )
-    if held is None:
-        return
-    runs, source, window, converged = held
-    _set_out_of_sample(gain, runs, window, source)
-    gain.held_out_converged = bool(converged)
 
 
 def _quantity_names(study, proposals, fit) -> list:
@@ -282,40 +270,34 @@ def _undetermined(fit, names) -> list:
     theta = np.asarray(fit.theta[:k], float)
     cov = np.asarray(fit.covariance[:k, :k], float)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    held = np.zeros(k, dtype=bool)  # at a bound: a limit, named as such
+    held[: min(k, fit.at_bound.size)] = fit.at_bound[:k]
+    determined = np.isfinite(se) & (se > 0)
     out = []
-    held = np.zeros(k, dtype=bool)
-    at_bound = getattr(fit, "at_bound", None)
-    if at_bound is not None:  # a limit, not an estimate: named as on its bound
-        held[: min(k, len(at_bound))] = np.asarray(at_bound, bool)[:k]
-    for j in range(k):
-        if held[j]:
-            continue
-        if not np.isfinite(se[j]) or se[j] == 0.0:
+    for j in np.flatnonzero(~held):
+        if not determined[j]:
             out.append(f"{names[j]} is not determined by the data (no standard error)")
         elif se[j] > abs(theta[j]):
             out.append(
                 f"{names[j]} = {sig(theta[j])} has a standard error larger than its "
                 f"value ({sig(se[j])})"
             )
-    ok = np.flatnonzero(np.isfinite(se) & (se > 0))
-    for a_i, a in enumerate(ok):
-        for b in ok[a_i + 1 :]:
-            r = cov[a, b] / (se[a] * se[b])
-            if abs(r) > TRADE_OFF_CORRELATION:
-                out.append(
-                    f"{names[a]} and {names[b]} trade off (correlation of their "
-                    f"estimates {r:+.4f})"
-                )
+    pairs = correlated_pairs(
+        cov, names[:k], ~determined, limit=TRADE_OFF_CORRELATION, most=None
+    )
+    out += [
+        f"{a} and {b} trade off (correlation of their estimates {r:+.4f})"
+        for a, b, r in pairs
+    ]
     return out
 
 
 def _parameter_doubts(study, fit) -> list:
     """Grey-box parameters that ran away from the guess or sit on a bound."""
     out = []
-    at_bound = getattr(fit, "at_bound", None)
     for k, name in enumerate(study.parameter_names):
         guess, value = float(study.parameter_init[k]), float(fit.physical[k])
-        if at_bound is not None and k < len(at_bound) and at_bound[k]:
+        if fit.at_bound[k]:
             out.append(f"{name} = {sig(value)} sits on its bound")
             continue
         if guess == 0.0 or not np.isfinite(value):
@@ -352,14 +334,13 @@ def _substeps(study, assumed, proposals, x_hat) -> int:
     return rk4_substeps(study, rhs_rows, x_hat, study.t)
 
 
-def _extended_model(study, proposals, confirmation, fit, x_hat) -> ExtendedModel:
+def _extended_model(study, proposals, fit, x_hat) -> ExtendedModel:
     """The model as printed: the assumed model at ``fit``'s parameters plus
-    ``confirmation.slots`` with ``fit``'s coefficients."""
+    ``fit.slots`` with ``fit``'s coefficients."""
     n_lib = len(proposals.feature_names)
     coef = np.zeros((study.n_states, n_lib))
     intercept = np.zeros(study.n_states)
-    values = [] if confirmation.fit is None else fit.coefficients
-    for (i, c), v in zip(confirmation.slots, values):
+    for (i, c), v in zip(fit.slots, fit.coefficients):
         if c == proposals.constant_column:
             intercept[i] = v
         else:

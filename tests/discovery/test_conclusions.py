@@ -312,6 +312,21 @@ def check_hidden_scale(res):
     assert any("trade off" in r for r in res.reasons)
 
 
+def _machine_study(machine, rec, **kwargs):
+    """``discover`` on a machine's record with its grey-box model."""
+    return _quiet(
+        discover,
+        rec.y,
+        rec.t,
+        u=rec.u,
+        assumed_model=machine.assumed_model,
+        parameters=machine.parameters,
+        n_states=len(machine.state_names),
+        measured=list(machine.measured),
+        **kwargs,
+    )
+
+
 def axis_sign_of_everything():
     machine = positioning_axis()
     rec = machine.record(0, duration=5.0)
@@ -320,15 +335,9 @@ def axis_sign_of_everything():
         function_names=[lambda s: f"sign({s})"],
         include_bias=True,
     )
-    return _quiet(
-        discover,
-        rec.y,
-        rec.t,
-        u=rec.u,
-        assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
-        n_states=2,
-        measured=[0],
+    return _machine_study(
+        machine,
+        rec,
         noise_variance=(1e-5) ** 2,
         feature_library=lib,
         feature_names=["q", "v", "u"],
@@ -349,15 +358,9 @@ def check_axis_sign_of_everything(res):
 def two_tanks_linear():
     machine = cascaded_tanks()
     rec = machine.record(0, duration=2048.0)
-    return _quiet(
-        discover,
-        rec.y,
-        rec.t,
-        u=rec.u,
-        assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
-        n_states=2,
-        measured=[1],
+    return _machine_study(
+        machine,
+        rec,
         noise_variance=0.02**2,
         error_states=[0, 1],
         feature_library=ps.PolynomialLibrary(degree=2),
