@@ -27,7 +27,7 @@ def _header(res) -> list:
         + inputs,
         f"Measurement noise variance: {noise} ({source})",
     ]
-    placement = getattr(res.study, "error_states_note", "")
+    placement = res.study.error_states_note
     if placement:
         out.append(f"Model error placed on: {placement}")
     out += [f"Conclusion: {res.conclusion}", f"Verdict: {res.verdict}."]
