@@ -17,7 +17,7 @@ from .exceptions import (
     ExcludedFeaturesWarning,
     StepwiseCycleWarning,
 )
-from .feature_library import PowerLibrary
+from .feature_library import PhysicsLibrary, PowerLibrary
 from .stepwise import FloatingFStepwise
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "Parameter",
     "FloatingFStepwise",
     "PowerLibrary",
+    "PhysicsLibrary",
     "discover",
     "datasets",
     "estimate_noise_variance",

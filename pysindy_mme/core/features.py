@@ -6,7 +6,11 @@ millisecond per call whatever the row count, which makes a simulation of a
 few hundred steps take seconds. Monomial-like feature names (``"x1^2 x2"``,
 ``"|x2|^-1"``, ``"x2 |x2|"``, ``"u"``, ``"1"``) say exactly how a column is
 computed, so we parse them into products of powers and evaluate those
-directly. The parsed evaluator is checked against ``transform`` on reference
+directly. A library that evaluates its own columns and their exact
+derivatives (methods ``evaluate(z, indices)`` and ``gradient(z, indices)``,
+as :class:`~pysindy_mme.PhysicsLibrary` has: duck typing, since ``core``
+imports nothing from the rest of the package) is used directly instead of
+parsing. Either fast evaluator is checked against ``transform`` on reference
 data; any mismatch (or a name we cannot parse) falls back to ``transform``.
 """
 
@@ -35,6 +39,25 @@ def _parse(name: str, variables: list) -> list | None:
             return None
         factors.append((variables.index(var), int(power or 1), bool(bar_open)))
     return factors
+
+
+def _has_own_evaluator(library) -> bool:
+    """Whether the library evaluates chosen columns and their gradients itself."""
+    return callable(getattr(library, "evaluate", None)) and callable(
+        getattr(library, "gradient", None)
+    )
+
+
+def _agrees(fast, slow) -> bool:
+    """Fast values equal ``transform``'s to 1e-9 (relative), non-finite alike."""
+    fast = np.asarray(fast, dtype=float)
+    if fast.shape != slow.shape:
+        return False
+    ok = np.isfinite(slow)
+    scale = np.maximum(np.abs(slow), 1.0)
+    with np.errstate(invalid="ignore"):
+        close = np.abs(fast - slow) <= 1e-9 * scale
+    return bool(np.all(close[ok])) and np.array_equal(ok, np.isfinite(fast))
 
 
 def _power(base, power: int):
@@ -71,20 +94,35 @@ class SelectedFeatures:
         self.indices = np.asarray(indices, dtype=int)
         names = library.get_feature_names(self.variables)
         self.names = [names[i] for i in self.indices]
+        self._own = False  # the library's own evaluate/gradient are used
+        z_reference = np.asarray(z_reference, dtype=float)
+        slow = None
+        if len(self.indices) and _has_own_evaluator(library):
+            try:
+                with np.errstate(all="ignore"):
+                    fast = library.evaluate(z_reference, self.indices)
+            except (ValueError, TypeError, IndexError, AttributeError):
+                fast = None  # e.g. names it cannot resolve: the other paths
+            if fast is not None:
+                slow = self._transform(z_reference)
+                self._own = _agrees(fast, slow)
+        if self._own:
+            self._factors = None
+            return
         parsed = [_parse(n, self.variables) for n in self.names]
         self._factors = None if any(p is None for p in parsed) else parsed
         if self._factors is not None and len(self.indices):
-            fast = self._fast(z_reference)
-            slow = self._transform(z_reference)
-            ok = np.isfinite(slow)
-            scale = np.maximum(np.abs(slow), 1.0)
-            close = np.abs(fast - slow) <= 1e-9 * scale
-            if not np.all(close[ok]) or not np.array_equal(ok, np.isfinite(fast)):
+            slow = self._transform(z_reference) if slow is None else slow
+            if not _agrees(self._fast(z_reference), slow):
                 self._factors = None
 
     @property
     def is_fast(self) -> bool:
-        return self._factors is not None
+        return self._own or self._factors is not None
+
+    def _positions(self, chosen):
+        """Library column numbers of the positions ``chosen`` of ``indices``."""
+        return self.indices if chosen is None else self.indices[list(chosen)]
 
     def _fast(self, z, subset=None):
         chosen = range(len(self._factors)) if subset is None else subset
@@ -101,14 +139,19 @@ class SelectedFeatures:
     def gradient(self, z, subset=None) -> np.ndarray:
         """``d column / d z`` for the chosen columns: ``(n_rows, n_cols, n_vars)``.
 
-        Exact (product rule on the parsed powers) on the fast path; central
-        differences of the library otherwise.
+        Exact: the library's own ``gradient`` when it has one, the product
+        rule on the parsed powers on the parsed path; central differences of
+        the library otherwise.
         """
         z = np.atleast_2d(np.asarray(z, dtype=float))
         chosen = list(range(len(self.indices)) if subset is None else subset)
         out = np.zeros((z.shape[0], len(chosen), z.shape[1]))
         if not chosen:
             return out
+        if self._own:
+            return np.asarray(
+                self.library.gradient(z, self._positions(chosen)), dtype=float
+            )
         if self._factors is None:
             from .model import rowwise_jacobian
 
@@ -140,6 +183,10 @@ class SelectedFeatures:
         z = np.atleast_2d(np.asarray(z, dtype=float))
         if len(self.indices) == 0 or (subset is not None and len(subset) == 0):
             return np.zeros((z.shape[0], 0))
+        if self._own:
+            return np.asarray(
+                self.library.evaluate(z, self._positions(subset)), dtype=float
+            )
         if self._factors is not None:
             return self._fast(z, subset)
         out = self._transform(z)

@@ -106,6 +106,13 @@ class PowerLibrary(BaseFeatureLibrary):
     4. if ``cross_products``: for every pair of variables ``a < b``, every
        single function of ``x_a`` times every single function of ``x_b``.
 
+    ``sign(x)`` (total power 0) is not offered, on purpose: it is the
+    paper's excluded ``x^0`` family, and a jump is a physical effect (dry
+    friction) better named as one, on the variable it acts on:
+    :class:`~pysindy_mme.PhysicsLibrary` with ``[Coulomb("v")]`` (classes in
+    :mod:`pysindy_mme.feature_library.effects`), concatenated with this
+    library if both are wanted.
+
     With the defaults and ``n`` variables this is ``22 n + 100 n (n - 1) / 2``
     columns (+1 with the constant): 22 for one variable, **144 for two** and
     366 for three. With ``include_constant=True`` two variables give 145, the
