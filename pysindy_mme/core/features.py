@@ -48,6 +48,14 @@ def _has_own_evaluator(library) -> bool:
     )
 
 
+def _exact_evaluation(library, z, indices):
+    """``library.evaluate`` with its kinks exact where it can smooth them."""
+    try:
+        return library.evaluate(z, indices, exact=True)
+    except TypeError:  # an evaluator without smoothing
+        return library.evaluate(z, indices)
+
+
 def _agrees(fast, slow) -> bool:
     """Fast values equal ``transform``'s to 1e-9 (relative), non-finite alike."""
     fast = np.asarray(fast, dtype=float)
@@ -100,7 +108,9 @@ class SelectedFeatures:
         if len(self.indices) and _has_own_evaluator(library):
             try:
                 with np.errstate(all="ignore"):
-                    fast = library.evaluate(z_reference, self.indices)
+                    # the exact kinks: integrators get the library's
+                    # smoothed ones (PhysicsLibrary.smoothing), transform not
+                    fast = _exact_evaluation(library, z_reference, self.indices)
             except (ValueError, TypeError, IndexError, AttributeError):
                 fast = None  # e.g. names it cannot resolve: the other paths
             if fast is not None:

@@ -116,7 +116,7 @@ def test_columns_match_hand_written_formulas(case):
     lib = _fitted(effect)
     expected = np.column_stack(reference(z[:, 1]))
     np.testing.assert_allclose(np.asarray(lib.transform(z)), expected, atol=1e-14)
-    np.testing.assert_allclose(lib.evaluate(z), expected, atol=1e-14)
+    np.testing.assert_allclose(lib.evaluate(z, exact=True), expected, atol=1e-14)
     assert lib.get_feature_names() == names
     assert lib.n_output_features_ == len(names)
 
@@ -150,7 +150,7 @@ def test_gradient_conventions_at_the_kinks():
         Overflow("v", 1),
     )
     at = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
-    grad = lib.gradient(at)[:, :, 1]
+    grad = lib.gradient(at, exact=True)[:, :, 1]
     # sign: 0; v+ / v-: one-sided from above (1, 0) at 0; sqrt: 0 at an empty
     # tank (its slope is infinite); at +-1 every kink takes the slope above it
     np.testing.assert_array_equal(grad[0], [0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0])
@@ -268,8 +268,10 @@ def test_evaluate_selected_columns_in_order_and_single_rows():
     lib = _fitted(Coulomb("v"), Saturation("u", [1, 2]), include_bias=True)
     z = _data()
     full = np.asarray(lib.transform(z))
-    np.testing.assert_array_equal(lib.evaluate(z, [3, 0, 1]), full[:, [3, 0, 1]])
-    np.testing.assert_array_equal(lib.evaluate(z[7], [2]), full[7:8, [2]])
+    np.testing.assert_array_equal(
+        lib.evaluate(z, [3, 0, 1], exact=True), full[:, [3, 0, 1]]
+    )
+    np.testing.assert_array_equal(lib.evaluate(z[7], [2], exact=True), full[7:8, [2]])
     assert lib.evaluate(z, []).shape == (len(z), 0)
     assert lib.gradient(z[:2], [3, 1]).shape == (2, 2, 3)
 
@@ -408,6 +410,7 @@ def test_extended_model_uses_the_library_evaluator():
         ],
         include_bias=True,
         names=["q", "v"],
+        smoothing=0,  # exact kinks: the correction must equal transform's
     ).fit(np.zeros((2, 2)))
     model, coef = _extended(lib)
     assert model._features.is_fast and model._features._own
@@ -607,3 +610,71 @@ def test_docstring_example_runs():
 
     result = doctest.testmod(physics)
     assert result.attempted >= 4 and result.failed == 0
+
+
+SMOOTHED = [
+    Coulomb("v"),
+    Stribeck("v", 0.5),
+    ViscousSplit("v"),
+    Saturation("v", 1),
+    DeadZone("v", 1),
+    Torricelli("v"),
+    Overflow("v", 1),
+]
+
+
+def test_smoothing_widths_follow_the_variable_spread():
+    z = _data()
+    lib = PhysicsLibrary(SMOOTHED, include_bias=True, names=NAMES, smoothing=0.01)
+    lib.fit(z)
+    spread = np.std(z[:, 1])
+    # bias first, then every kinked column at 1 % of v's sd
+    np.testing.assert_allclose(lib.widths_, [0.0] + [0.01 * spread] * 8)
+    exact = PhysicsLibrary(SMOOTHED, names=NAMES, smoothing=0).fit(z)
+    np.testing.assert_array_equal(exact.widths_, 0.0)
+    np.testing.assert_array_equal(exact.evaluate(z), np.asarray(exact.transform(z)))
+    # transform is exact whatever the smoothing
+    np.testing.assert_array_equal(
+        np.asarray(lib.transform(z)), lib.evaluate(z, exact=True)
+    )
+
+
+def test_smoothed_columns_match_exact_ones_beyond_a_few_widths():
+    z = _data()
+    lib = PhysicsLibrary(SMOOTHED, names=NAMES, smoothing=0.01).fit(z)
+    w = lib.widths_[0]
+    exact = lib.evaluate(z, exact=True)
+    smooth = lib.evaluate(z)
+    # distance of each row to the nearest kink of each column
+    v = z[:, 1]
+    kinks = [[0.0], [0.0], [0.0], [0.0], [-1.0, 1.0], [-1.0, 1.0], [0.0], [1.0]]
+    for j, at in enumerate(kinks):
+        far = np.min(np.abs(v[:, None] - np.array(at)[None, :]), axis=1) > 40 * w
+        # tanh and softplus approach their limits like e^(-40), about 1e-18
+        # of w; Torricelli's square root of it like its square root
+        atol = 1e-9 if j == 6 else 1e-12
+        np.testing.assert_allclose(smooth[far, j], exact[far, j], atol=atol)
+    # everywhere: a ramp is off by at most w log 2, a step by at most 1
+    ramps = [2, 3, 4, 5, 7]
+    assert np.max(np.abs(smooth[:, ramps] - exact[:, ramps])) <= 2 * w * np.log(2)
+
+
+def test_smoothed_gradients_match_central_differences_through_the_kinks():
+    lib = PhysicsLibrary(SMOOTHED, names=NAMES, smoothing=0.05).fit(_data())
+    w = lib.widths_[0]
+    v = np.linspace(-1.2, 1.2, 97)
+    v = v[np.abs(v) > 0.1 * w]  # Torricelli's sqrt of a softplus is smooth at 0
+    z = np.column_stack([np.zeros_like(v), v, np.zeros_like(v)])
+    h = 1e-7
+    step = np.array([0.0, h, 0.0])
+    numeric = (lib.evaluate(z + step) - lib.evaluate(z - step)) / (2 * h)
+    np.testing.assert_allclose(lib.gradient(z)[:, :, 1], numeric, rtol=1e-5, atol=1e-6)
+    # the exact sign has no derivative at its jump; the smoothed one is 1/w
+    at0 = np.array([[0.0, 0.0, 0.0]])
+    assert lib.gradient(at0)[0, 0, 1] == pytest.approx(1.0 / w)
+
+
+@pytest.mark.parametrize("bad", [-1e-3, float("nan"), "1e-3", True])
+def test_smoothing_must_be_a_non_negative_number(bad):
+    with pytest.raises(ValueError, match="smoothing"):
+        PhysicsLibrary([Coulomb("v")], names=NAMES, smoothing=bad)
