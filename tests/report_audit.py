@@ -43,15 +43,15 @@ audited_runs: Counter = Counter()
 def _inputs_at(u, t, hold):
     """``s -> u(s)`` written here: linear, zero-order hold or Catmull-Rom."""
     if u is None:
-        return lambda s: None
+        return lambda s, k: None
     if callable(u):
-        return lambda s: np.asarray(u(np.atleast_1d(s)), float).reshape(1, -1)
+        return lambda s, k: np.asarray(u(np.atleast_1d(s)), float).reshape(1, -1)
     u = np.asarray(u, float).reshape(t.size, -1)
 
-    def at(s):
-        k = int(np.clip(np.searchsorted(t, s, side="right") - 1, 0, t.size - 2))
-        if hold == "zoh":
-            return u[min(np.searchsorted(t, s, side="right") - 1, t.size - 1)][None]
+    def at(s, interval):
+        if hold == "zoh":  # held over the whole interval, its right end included
+            return u[interval][None]
+        k = interval
         f = (s - t[k]) / (t[k + 1] - t[k])
         if hold == "cubic":
             a, b = u[max(k - 1, 0)], u[k]
@@ -74,18 +74,18 @@ def rk4_free_run(model, x0, t, u, hold, substeps):
     x[0] = x0
     state = np.asarray(x0, float)[None].copy()
 
-    def f(s, z):
-        return np.asarray(model(z, np.array([s]), at(s)), float)
+    def f(s, z, k):
+        return np.asarray(model(z, np.array([s]), at(s, k)), float)
 
     with np.errstate(all="ignore"):
         for k in range(t.size - 1):
             h = (t[k + 1] - t[k]) / substeps
             s = t[k]
             for _ in range(substeps):
-                k1 = f(s, state)
-                k2 = f(s + h / 2, state + h / 2 * k1)
-                k3 = f(s + h / 2, state + h / 2 * k2)
-                k4 = f(s + h, state + h * k3)
+                k1 = f(s, state, k)
+                k2 = f(s + h / 2, state + h / 2 * k1, k)
+                k3 = f(s + h / 2, state + h / 2 * k2, k)
+                k4 = f(s + h, state + h * k3, k)
                 state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
                 s += h
             x[k + 1] = state[0]
