@@ -258,7 +258,20 @@ def _inputs(args, header, data):
 
 
 def _grey_box(args, kwargs) -> dict:
-    """--offsets and --parameters into ``kwargs``; returns the parameters."""
+    """--clipped, --offsets and --parameters into ``kwargs``; returns the
+    parameters."""
+    clipped = getattr(args, "clipped", "auto")
+    if clipped not in ("auto", "keep"):
+        raise UsageError(
+            f"--clipped must be auto or keep, got {clipped!r} (auto leaves readings "
+            "on a sensor's limits out of the fit; keep fits them as readings)"
+        )
+    if clipped != "auto":
+        if not discover_accepts("clipped"):
+            raise UsageError(
+                "--clipped is not supported by this version of pysindy-mme's discover"
+            )
+        kwargs["clipped"] = clipped
     if args.offsets:
         if not discover_accepts("offsets"):
             raise UsageError(

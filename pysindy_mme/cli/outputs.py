@@ -21,7 +21,9 @@ __all__ = ["timeseries_columns", "write_outputs"]
 def timeseries_columns(result) -> dict:
     """``{column name: values}`` of ``timeseries.csv``, in order.
 
-    ``t``; ``input <name>``; ``measured <channel>``; ``estimate <state>``
+    ``t``; ``input <name>``; ``measured <channel>`` (as the sensor reported
+    it) and, when a channel clips, ``clipped <channel>`` (1 on a reading at
+    the sensor's limit, left out of the fit); ``estimate <state>``
     (MME); ``d <state>`` (MME's model error, error states only);
     ``assumed <state>`` and ``extended <state>`` (each model's simulation,
     from its own fitted initial state).
@@ -30,8 +32,12 @@ def timeseries_columns(result) -> dict:
     if result.u is not None:
         for k, name in enumerate(result.input_names):
             cols[f"input {name}"] = np.asarray(result.u)[:, k]
+    readings = np.asarray(getattr(result, "readings", result.y))
+    clipped = getattr(result, "clipped", None)
     for j, name in enumerate(result.channel_names):
-        cols[f"measured {name}"] = np.asarray(result.y)[:, j]
+        cols[f"measured {name}"] = readings[:, j]
+        if clipped:  # 1 where the reading is on a sensor's limit
+            cols[f"clipped {name}"] = clipped.mask[:, j].astype(float)
     x_hat = np.asarray(result.mme.smoothed_x_)
     d_hat = np.asarray(result.mme.d_)
     for i, name in enumerate(result.state_names):

@@ -89,6 +89,12 @@ HELP = {
     "--offsets": "estimate a constant offset per measured column (y = state + "
     "offset, e.g. a sensor's bias) instead of letting the dynamics absorb it. "
     "Default: off. Example: --offsets",
+    "--clipped": "readings on the end of a sensor's range (runs of samples "
+    "exactly on a column's largest or smallest value, as a sensor that reads at "
+    "most 10 V reports 10 V above it): auto finds them and leaves them out of the "
+    "fit and the RMSEs (they say only 'at or beyond'); keep fits them as "
+    "readings. The report names them either way. Default: auto. "
+    "Example: --clipped keep",
     "--out": "output folder (created; files in it are overwritten). "
     "Default: mme_output. Example: --out results/",
     "--verbose": "report each stage of the study, with the elapsed time, on "
@@ -144,6 +150,7 @@ def _discover_parser(sub):
     _add(disc, "--alpha", default="0.001", metavar="P")
     _add(disc, "--error-model", default="white", metavar="white|random_walk")
     _add(disc, "--offsets", action="store_true")
+    _add(disc, "--clipped", default="auto", metavar="auto|keep")
     _add(disc, "--out", default="mme_output", metavar="FOLDER")
     _add(disc, "--verbose", action="store_true")
     return disc

@@ -30,11 +30,17 @@ than the evidence. One of five conclusions:
 ``"inconclusive"``
     Anything short of the above: the reasons say what is missing and what
     to try.
+
+Whatever the conclusion, a model whose free run crosses a level the data
+never pass (:class:`Overshoot`: above the highest reading, or below the
+lowest, by more than 3 noise sd, where the data sit at that extreme) adds a
+reason and the advice to try a saturation or overflow there; it changes no
+label.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -44,6 +50,7 @@ __all__ = [
     "CONCLUSIONS",
     "Conclusion",
     "Evidence",
+    "Overshoot",
     "conclude",
     "FIT_FACTOR",
     "HELD_OUT_MARGIN",
@@ -81,6 +88,56 @@ class Conclusion:
     advice: tuple = ()
 
 
+@dataclass(frozen=True)
+class Overshoot:
+    """A model's free run beyond every reading of a channel: a possible limit.
+
+    Attributes
+    ----------
+    model : str
+        ``"extended"`` or ``"assumed"``.
+    channel : str
+    side : {"ceiling", "floor"}
+        Above the highest reading, or below the lowest.
+    reached : float
+        The free run's extreme on that side.
+    level : float
+        The highest (lowest) reading.
+    clipped : bool
+        That reading is a sensor limit: the record's readings are clipped
+        there.
+    """
+
+    model: str
+    channel: str
+    side: str
+    reached: float
+    level: float
+    clipped: bool = False
+
+    def sentence(self) -> str:
+        above = self.side == "ceiling"
+        where = "above the highest" if above else "below the lowest"
+        limit = f", a sensor {self.side}" if self.clipped else ""
+        tail = (
+            ", or only the sensor does"
+            if self.clipped
+            else ", where the data level off"
+        )
+        return (
+            f"the {self.model} model's {self.channel} reaches {sig(self.reached)}, "
+            f"{where} reading ({sig(self.level)}{limit}): the plant may saturate "
+            f"there (an overflow or a limit the model lacks){tail}; try "
+            "PhysicsLibrary effects Overflow/Saturation at that level"
+        )
+
+    def advice(self) -> str:
+        return (
+            f"a limit the model lacks at {self.channel} = {sig(self.level)}: "
+            "PhysicsLibrary effects Overflow or Saturation at that level"
+        )
+
+
 @dataclass
 class Evidence:
     """What the conclusion is derived from (all numbers already measured).
@@ -106,6 +163,8 @@ class Evidence:
         Sentences naming runaway or bounded parameters.
     noise_doubt : str or None
         Why the noise level is not known, if it is not.
+    overshoots : list of Overshoot
+        Levels the data never pass that the model's free run crosses.
     """
 
     contradicted: bool
@@ -124,6 +183,7 @@ class Evidence:
     unidentified: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
     noise_doubt: str | None = None
+    overshoots: list = field(default_factory=list)
 
 
 def combined(rmse, floor) -> float:
@@ -135,9 +195,20 @@ def combined(rmse, floor) -> float:
 
 def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
-    if not ev.terms:
-        return _without_terms(ev)
-    return _with_terms(ev)
+    found = _without_terms(ev) if not ev.terms else _with_terms(ev)
+    return _with_overshoots(found, ev.overshoots)
+
+
+def _with_overshoots(found: Conclusion, overshoots) -> Conclusion:
+    """The levels a model crosses, as reasons and advice (the label stays)."""
+    if not overshoots:
+        return found
+    advice = list(found.advice)
+    for o in overshoots:
+        if o.advice() not in advice:
+            advice.append(o.advice())
+    reasons = tuple(found.reasons) + tuple(o.sentence() for o in overshoots)
+    return replace(found, reasons=reasons, advice=tuple(advice))
 
 
 def _without_terms(ev: Evidence) -> Conclusion:

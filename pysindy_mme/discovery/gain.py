@@ -64,6 +64,10 @@ class FreeRun:
         Time at which the run left the bound, if it did.
     model : callable
         The model that ran, ``(x, t, u) -> dx/dt`` (as printed).
+    window : int or None
+        Leading samples the initial state was estimated from (None for an
+        in-sample run); longer than asked when readings in it were clipped
+        or missing.
     """
 
     x0: np.ndarray
@@ -71,6 +75,7 @@ class FreeRun:
     rmse: np.ndarray
     diverged_at: float | None = None
     model: object = None
+    window: int | None = None
 
 
 @dataclass

@@ -19,6 +19,7 @@ from ..core import validation as val
 from ..core.integrate import HOLDS, InputSignal
 from ..core.libraries import fresh_library
 from ..core.noise import describe_noise
+from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
 from .parameters import parameter_spec
 from .placement import default_error_states
@@ -76,6 +77,21 @@ class Study:
         output-error fit keeps the parameters inside.
     offsets : bool
         Estimate a constant offset per measured channel.
+    clipped : Clipping
+        Readings of the fitting record on the sensor's limits
+        (:mod:`pysindy_mme.core.sensors`); ``y`` holds NaN there unless
+        ``clipped_option`` is ``"keep"``.
+    validation_clipped : Clipping or None
+        The same for the validation record (censored in ``validation``).
+    clipped_option : "auto", "keep" or list of (low, high)
+        What the user asked (ranges checked, one per channel).
+    readings : ndarray (N, m) or None
+        The fitting record as the sensors reported it (``y`` before the
+        clipped readings were set to NaN).
+    clipped_cut, validation_clipped_cut : (int, int)
+        Samples cut from the start and the end of each record because every
+        reading there is clipped (:func:`clipped_edges`); ``y``, ``t``,
+        ``u``, ``readings`` and the clipping masks are the rows between.
     """
 
     @property
@@ -127,6 +143,19 @@ class Study:
     error_states_note: str = ""
     noise_description: str = ""
     noise_doubt: str | None = None
+    clipped: Clipping | None = None
+    validation_clipped: Clipping | None = None
+    clipped_option: object = "auto"
+    readings: np.ndarray | None = None
+    clipped_cut: tuple = (0, 0)
+    validation_clipped_cut: tuple = (0, 0)
+
+    @property
+    def censored(self) -> bool:
+        """Clipped readings are left out of the fits and the RMSEs."""
+        return not (
+            isinstance(self.clipped_option, str) and self.clipped_option == "keep"
+        )
 
     @property
     def n_inputs(self) -> int:
@@ -295,9 +324,74 @@ def _names(feature_names, n_states, n_inputs, measured=None, y_cols=None, u_cols
 
 
 def check_record(study, y, t, u=None, name="validation y"):
-    """Another record of the study's system, checked: ``(y, t, u)``."""
+    """Another record of the study's system, checked: ``(y, t, u)``, its
+    clipped readings censored as the study's (:func:`censor_record`)."""
     record = (y, t) if u is None else (y, t, u)
-    return _validation(record, study.y.shape[1], study.n_inputs, name)
+    y_v, t_v, u_v = _validation(record, study.y.shape[1], study.n_inputs, name)
+    found, y_v = censor_record(y_v, study.clipped_option, study.clipped)
+    rows, _ = clipped_edges(y_v, found)
+    return y_v[rows], t_v[rows], None if u_v is None else u_v[rows]
+
+
+def clipped_edges(y, found: Clipping) -> tuple:
+    """``(rows to keep, (leading, trailing) rows cut)``: the record without
+    the stretches at its start and end where every reading is censored.
+
+    Such a stretch tells the fit nothing once its readings are left out
+    (no reading before or after it anchors the states there), and a free
+    trajectory with nothing to follow can only destabilise the estimators;
+    the study runs on the rows between. Rows that were missing (NaN) in
+    the record itself are cut only together with clipped ones.
+    """
+    n = y.shape[0]
+    if not found:
+        return slice(0, n), (0, 0)
+    empty = ~np.any(np.isfinite(y), axis=1)
+    clipped = np.any(found.mask, axis=1)
+
+    def edge(empty, clipped):
+        k = int(np.argmin(empty)) if not empty.all() else empty.size
+        return k if clipped[:k].any() else 0
+
+    lead = edge(empty, clipped)
+    trail = edge(empty[::-1], clipped[::-1])
+    return slice(lead, n - trail), (lead, trail)
+
+
+def _clipped_option(clipped, m):
+    """``"auto"``, ``"keep"`` or the checked ranges, one per channel."""
+    if isinstance(clipped, str):
+        if clipped not in ("auto", "keep"):
+            raise ValueError(
+                f"clipped must be 'auto', 'keep' or a (low, high) range, got "
+                f"{clipped!r}"
+            )
+        return clipped
+    if clipped is None:
+        raise TypeError(
+            "clipped must be 'auto', 'keep' or a (low, high) range (None for a "
+            "missing limit), got None"
+        )
+    return check_ranges(clipped, m, "clipped")
+
+
+def censor_record(y, option, fitting: Clipping | None = None):
+    """``(Clipping, y with the clipped readings NaN)`` of a record (a copy).
+
+    ``option``: ``"auto"`` (detected on this record; a level found on the
+    fitting record, ``fitting``, is the same sensor's: readings exactly on
+    it count too), ``"keep"`` (found and named, left in) or the user's
+    ranges (readings at or beyond them).
+    """
+    if isinstance(option, str):
+        found = clipped_samples(y)
+        if fitting is not None and fitting:
+            found = clipped_at(y, fitting.ranges(), beyond=False).merged(found)
+        if option == "keep":
+            return found, y
+    else:
+        found = clipped_at(y, option)
+    return found, found.censor(y) if found else y
 
 
 def _validation(validation, m, n_inputs, name="validation y"):
@@ -473,6 +567,7 @@ def check_study(
     parameters=None,
     offsets=False,
     min_effect=0.01,
+    clipped="auto",
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
@@ -482,18 +577,34 @@ def check_study(
         y = y[:, None]
     if np.all(np.isnan(y)):
         raise ValueError("y contains no finite measurement")
+    clipped = _clipped_option(clipped, y.shape[1])
+    readings = y
+    clipping, y = censor_record(readings, clipped)
+    if np.all(np.isnan(y)):
+        raise ValueError(
+            "every reading of y is on the sensor's limits (clipped): nothing is "
+            "left to fit; give clipped='keep' to fit them as readings"
+        )
     n_samples = y.shape[0]
     t = val.check_time(t, n_samples, "t")
     alpha, min_effect, window = _check_options(
         alpha, min_effect, refit, input_hold, offsets, validation_window
     )
     u = _inputs_array(u, n_samples)
+    rows, cut = clipped_edges(y, clipping)
+    levels = clipping  # the sensor's limits, found on the whole record
+    if cut != (0, 0):
+        y, readings, t = y[rows], readings[rows], t[rows]
+        u = None if u is None else u[rows]
+        clipping = clipping.rows(rows)
     params, bounds = _parameters(parameters)
     if params and mme is not None:
         raise ValueError(
             "parameters need assumed_model=f(x, t, u, p) given to discover, not mme="
         )
     est = _estimator(mme, mme_keywords, u, input_hold, params)
+    if cut != (0, 0) and u is None and est.u is not None and not callable(est.u):
+        est.set_params(u=np.asarray(est.u, dtype=float).reshape(n_samples, -1)[rows])
     n_states = _check_estimator(est, y)
     u_est = est.u if u is None else u
     n_inputs = _count_inputs(u_est, t)
@@ -513,6 +624,22 @@ def check_study(
     library = _library(feature_library)
     optimizer = _optimizer(optimizer)
     validation = _validation(validation, y.shape[1], n_inputs)
+    validation_clipping, validation_cut = None, (0, 0)
+    if validation is not None:
+        validation_clipping, y_v = censor_record(validation[0], clipped, levels)
+        if np.all(np.isnan(y_v)):
+            raise ValueError(
+                "every reading of the validation y is on the sensor's limits "
+                "(clipped): nothing is left to validate on"
+            )
+        rows_v, validation_cut = clipped_edges(y_v, validation_clipping)
+        u_v = validation[2]
+        validation = (
+            y_v[rows_v],
+            validation[1][rows_v],
+            None if u_v is None else u_v[rows_v],
+        )
+        validation_clipping = validation_clipping.rows(rows_v)
     if assumed_equations is not None and len(assumed_equations) != n_states:
         raise ValueError(
             f"assumed_equations has {len(assumed_equations)} entries, expected "
@@ -556,5 +683,11 @@ def check_study(
         min_effect=float(min_effect),
         parameter_bounds=bounds,
         error_states_note=placement,
+        clipped=clipping,
+        validation_clipped=validation_clipping,
+        clipped_option=clipped,
+        readings=readings,
+        clipped_cut=cut,
+        validation_clipped_cut=validation_cut,
         **_noise_record(problem),
     )

@@ -27,6 +27,7 @@ def _header(res) -> list:
         + inputs,
         f"Measurement noise variance: {noise} ({source})",
     ]
+    out += _clipped_lines(res)
     placement = res.study.error_states_note
     if placement:
         out.append(f"Model error placed on: {placement}")
@@ -38,6 +39,48 @@ def _header(res) -> list:
         out.append("What to try:")
         out += [f"- {a}" for a in res.advice]
     return out + [""]
+
+
+def _clipped_lines(res) -> list:
+    """``y2: 47 samples (4.6 %) sit on the sensor's ceiling 10: treated as
+    censored (left out of the fit)``, per clipped channel and side; and the
+    clipped stretches cut from the ends of a record."""
+    study = res.study
+    validation = study.validation
+    records = [
+        ("", study.clipped, study.clipped_cut, study.t),
+        (
+            "validation record, ",
+            study.validation_clipped,
+            study.validation_clipped_cut,
+            None if validation is None else validation[1],
+        ),
+    ]
+    treated = (
+        "treated as censored (left out of the fit)"
+        if study.censored
+        else "fitted as readings (clipped='keep')"
+    )
+    out = []
+    for where, found, cut, t in records:
+        for c in found or ():
+            given = c.given and not isinstance(study.clipped_option, str)
+            on = "at or beyond" if given else "on"
+            out.append(
+                f"Clipped: {where}{res.channel_names[c.channel]}: {c.count} samples "
+                f"({sig(100 * c.share, 2)} %) sit {on} the sensor's {c.side} "
+                f"{sig(c.level)}{' (given)' if given else ''}: {treated}"
+            )
+        if any(cut):
+            ends = [f"{w} {k}" for w, k in zip(("first", "last"), cut) if k]
+            record = "the validation record" if where else "the record"
+            out.append(
+                f"Clipped: {record}'s {' and '.join(ends)} samples are all on the "
+                f"sensor's limits, with no reading after them to anchor a fit: "
+                f"cut, the study runs on the {t.size} samples between (t = "
+                f"{sig(t[0])} .. {sig(t[-1])})"
+            )
+    return out
 
 
 def _what_is_wrong(res) -> list:
@@ -256,6 +299,11 @@ def _gain(res) -> list:
         header += ["valid. assumed", "valid. extended", "valid. gain"]
     out.append("Free-run RMSE against the measurements (noise = a perfect model):")
     out.append(text_table(header, rows))
+    if res.study.censored and (res.clipped or res.validation_clipped):
+        out.append(
+            "Clipped readings are left out of every RMSE: a reading on the sensor's "
+            "limit says only that the value is at or beyond it."
+        )
     out.append(
         "In-sample: each model run free over this record from the initial state "
         "of its fit to it (the extended model's terms were chosen on it)."

@@ -139,6 +139,18 @@ class Discovery:
         What to try when the conclusion is short of "explained".
     trade_offs : list of TradeOff
         Combinations of fitted quantities the data do not determine.
+    clipped : Clipping
+        Readings of the fitting record on a sensor's limits (per channel
+        and side: level, count, mask; see
+        :mod:`pysindy_mme.core.sensors`); left out of the fits and RMSEs
+        unless ``clipped="keep"``. ``validation_clipped``: the same for the
+        validation record (None without one). A clipped stretch at the start
+        or end of a record is cut (``study.clipped_cut``,
+        ``study.validation_clipped_cut``): ``t``, ``y`` and these masks are
+        the rows between.
+    readings : ndarray
+        The fitting record as the sensors reported it (``y`` has NaN at the
+        censored readings).
     warnings : list of str
     """
 
@@ -181,6 +193,14 @@ class Discovery:
     consistency_dof = property(lambda self: self.assumed.dof)
     consistency_p_value = property(lambda self: self.assumed.p_value)
     correction_p_value = property(lambda self: self.confirmation.correction_p_value)
+    clipped = property(lambda self: self.study.clipped)
+    validation_clipped = property(lambda self: self.study.validation_clipped)
+
+    @property
+    def readings(self) -> np.ndarray:
+        """The fitting record as reported, clipped readings included."""
+        readings = self.study.readings
+        return self.study.y if readings is None else readings
 
     @property
     def assumed_simulation(self) -> np.ndarray:
@@ -250,6 +270,9 @@ class Discovery:
         (default: the study's ``validation_window``), then it runs free over
         the whole record; the RMSE is taken over the samples after the
         window (a run that diverges has none: ``inf``, and ``diverged_at``).
+        Clipped readings are censored as in the study (``clipped``), and a
+        clipped stretch at either end of the record is cut: the runs then
+        cover the samples between.
 
         Parameters
         ----------
@@ -352,7 +375,40 @@ class Discovery:
                 }
                 for k, pe in self.parameters.items()
             },
+            "clipped": _clipped_dict(self.study),
             "extended_model": self.extended_model.equations(),
             "gain": self.gain.to_dict(),
             "warnings": list(self.warnings),
         }
+
+
+def _clipped_dict(study) -> dict:
+    """The clipping findings of both records, JSON-ready."""
+
+    def findings(clipping):
+        if clipping is None:
+            return []
+        return [
+            {
+                "channel": study.channel_names[c.channel],
+                "side": c.side,
+                "level": float(c.level),
+                "count": int(c.count),
+                "share": float(c.share),
+                "longest_run": int(c.longest_run),
+                "given": bool(c.given),
+            }
+            for c in clipping
+        ]
+
+    option = study.clipped_option
+    return {
+        "option": option if isinstance(option, str) else [list(r) for r in option],
+        "censored": bool(study.censored),
+        "fitting_record": findings(study.clipped),
+        "validation_record": findings(study.validation_clipped),
+        "cut": {
+            "fitting_record": list(study.clipped_cut),
+            "validation_record": list(study.validation_clipped_cut),
+        },
+    }

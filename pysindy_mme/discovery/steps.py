@@ -25,6 +25,7 @@ from sklearn.base import clone
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel, rowwise_jacobian
 from ..core.tables import sig
+from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
 from .doubts import stop_reason
 from .gain import FreeRun, Gain, free_run
@@ -47,6 +48,7 @@ __all__ = [
     "held_out_runs",
     "held_out_split",
     "hold_out",
+    "overshoots",
 ]
 
 
@@ -395,6 +397,8 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
 
 
 def _set_out_of_sample(gain, runs, window, source) -> None:
+    # the window the runs used (longer when readings in it were missing)
+    window = getattr(runs["assumed"], "window", None) or window
     gain.validation_runs = runs
     gain.validation_rmse_assumed = runs["assumed"].rmse
     gain.validation_rmse_extended = runs["extended"].rmse
@@ -548,7 +552,7 @@ def validation_runs(study, models: dict, features, substeps, record=None) -> dic
     depend on the window only).
     """
     y_v, t_v, u_v = study.validation if record is None else record
-    window = min(study.validation_window, y_v.shape[0] - 1)
+    window = observed_window(study.validation_window, y_v)
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = _measure(study)
     estimate = clone(study.mme).set_params(u=u_v)
@@ -592,4 +596,64 @@ def validation_runs(study, models: dict, features, substeps, record=None) -> dic
             window,
             guess,
         )
+        runs[name].window = window
     return runs
+
+
+def observed_window(window, y) -> int:
+    """Leading samples holding ``window`` readings (rows with a finite
+    reading), at most all but one: a window of censored (clipped) or missing
+    readings is lengthened until the initial state has ``window`` to go by."""
+    seen = np.cumsum(np.any(np.isfinite(np.asarray(y, float)), axis=1))
+    reach = int(np.searchsorted(seen, window)) + 1  # rows up to the window-th
+    return int(min(max(window, reach), y.shape[0] - 1))
+
+
+#: a free run beyond the data's extreme reading by more than this many noise
+#: sd crosses a level the data never pass
+OVERSHOOT_SD = 3.0
+
+
+def overshoots(study, fit, run, model_name) -> list:
+    """Levels the data never pass that a free run of the record crosses.
+
+    ``run``: the model's in-sample free run from ``fit``'s initial state.
+    Per measured channel and side: the run goes beyond the highest (lowest)
+    reading, clipped ones included, by more than ``OVERSHOOT_SD`` noise sd,
+    and where it does the data sit at that extreme (most of those samples
+    read within ``2 OVERSHOOT_SD`` sd of it: the data level off, or the
+    sensor clips, while the model goes on). A model that passes the data's
+    range where the data are far from it misses the dynamics, not a limit,
+    and is not named here.
+    """
+    readings = study.readings if study.readings is not None else study.y
+    readings = np.asarray(readings, dtype=float)
+    with np.errstate(all="ignore"):
+        pred = _measure(study)(run.x) + _offsets(study, fit)
+    sd = np.sqrt(np.diag(study.noise_cov))
+    out = []
+    for j, name in enumerate(study.channel_names):
+        y, p = readings[:, j], pred[:, j]
+        seen = np.isfinite(y)
+        if not seen.any():
+            continue
+        for side, sign in (("ceiling", 1.0), ("floor", -1.0)):
+            level = sign * float(np.max(sign * y[seen]))
+            with np.errstate(invalid="ignore"):
+                beyond = np.isfinite(p) & (sign * (p - level) > OVERSHOOT_SD * sd[j])
+                at_extreme = sign * (level - y) <= 2 * OVERSHOOT_SD * sd[j]
+            read = beyond & seen
+            if not read.any() or 2 * np.sum(read & at_extreme) < np.sum(read):
+                continue
+            clipped = study.clipped is not None and study.clipped.on(j, side)
+            out.append(
+                Overshoot(
+                    model=model_name,
+                    channel=name,
+                    side=side,
+                    reached=sign * float(np.max(sign * p[beyond])),
+                    level=level,
+                    clipped=bool(clipped),
+                )
+            )
+    return out

@@ -29,6 +29,7 @@ from .steps import (
     hold_out,
     measure_gain,
     output_error_engine,
+    overshoots,
     rk4_substeps,
     set_aside_parameter_duplicates,
     step_size_check,
@@ -62,6 +63,7 @@ def discover(
     parameters=None,
     offsets=False,
     min_effect=0.01,
+    clipped="auto",
     verbose=False,
 ):
     """Find what an assumed model gets wrong, name the cause, fix it, measure it.
@@ -146,6 +148,21 @@ def discover(
     offsets : bool, default False
         Estimate a constant offset per measured channel (``y = g(x) + o``)
         instead of letting the dynamics absorb it.
+    clipped : "auto", "keep" or (low, high), default "auto"
+        Readings on the end of a sensor's range (a level sensor that reads
+        at most 10 V reports 10 V whenever the level is higher). ``"auto"``
+        finds them (runs of readings exactly on a channel's largest or
+        smallest value, :func:`pysindy_mme.core.sensors.clipped_samples`)
+        on the fitting and the validation record and treats them as
+        censored: they are left out of every fit, of the noise estimate and
+        of every RMSE (a reading on the ceiling says only "at or above").
+        ``"keep"`` finds and names them but fits them as readings. A range
+        ``(low, high)`` (None for a missing limit; one pair per channel, or
+        one for all) censors the readings at or beyond it. A censored
+        stretch at the start or end of a record (nothing before or after it
+        to anchor the fit) is cut from it. The report names them
+        (``Discovery.clipped``), and says when a model's free run crosses a
+        level the data never exceed.
     verbose : bool
         Report each stage on standard error (stages are always logged to the
         ``"pysindy_mme"`` logger).
@@ -199,8 +216,10 @@ def run_study(study, progress: Progress) -> Discovery:
     trade_offs = exact_trade_offs(
         engine, extended_fit, names, study.state_names, study.measured
     )
+    final = "extended" if confirmation.slots else "assumed"
+    crossed = overshoots(study, fits[final], gain.in_sample_runs[final], final)
     conclusion = conclude(
-        _evidence(study, assumed, confirmation, gain, names, trade_offs)
+        _evidence(study, assumed, confirmation, gain, names, trade_offs, crossed)
     )
     for note in notes:
         warnings.warn(note, DiscoveryWarning, stacklevel=3)
@@ -234,7 +253,9 @@ def _quantity_names(study, proposals, fit) -> list:
     return names
 
 
-def _evidence(study, assumed, confirmation, gain, names, trade_offs) -> Evidence:
+def _evidence(
+    study, assumed, confirmation, gain, names, trade_offs, crossed=()
+) -> Evidence:
     fit = confirmation.fit or assumed.fit
     noise = study.noise_doubt
     k0 = len(study.parameter_names)
@@ -258,6 +279,7 @@ def _evidence(study, assumed, confirmation, gain, names, trade_offs) -> Evidence
         unidentified=[str(t) for t in trade_offs] + _undetermined(fit, names),
         parameters=_parameter_doubts(study, fit),
         noise_doubt=noise,
+        overshoots=list(crossed),
     )
 
 
