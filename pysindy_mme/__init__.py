@@ -11,6 +11,7 @@ from .core.noise import NoiseDiagnostics, estimate_noise_variance
 from .differentiation import MME
 from .differentiation.sindy_route import extended_model_from_sindy
 from .discovery import Discovery, ExtendedModel, Parameter, discover
+from .discovery.inputs import Record
 from .exceptions import (
     DiscoveryWarning,
     DivergenceError,
@@ -25,6 +26,7 @@ __all__ = [
     "Discovery",
     "ExtendedModel",
     "Parameter",
+    "Record",
     "FloatingFStepwise",
     "PowerLibrary",
     "PhysicsLibrary",

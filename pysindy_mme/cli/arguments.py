@@ -42,6 +42,9 @@ class Request:
     model_path: Path
     noise_text: str
     parameters: dict = field(default_factory=dict)
+    #: several data files: ``(y, t, u)`` of each (``y``, ``t``, ``u`` above
+    #: are the first); None for one
+    records: list | None = None
 
 
 def discover_accepts(name: str) -> bool:
@@ -202,12 +205,17 @@ def _states(args) -> tuple[list, list, list]:
 
 def _validation_rows(args, n_rows, train: slice):
     if args.validation_rows is None:
-        if args.validation_window is not None:
+        if args.validation_window is not None and not getattr(args, "validation", None):
             raise UsageError(
                 "--validation-window needs --validation-rows (the record it is "
                 "taken from), e.g. --validation-rows 16000:20000"
             )
         return None
+    if getattr(args, "validation", None):
+        raise UsageError(
+            "--validation-rows and --validation both given: validate on rows of "
+            "the data file or on other files, not both"
+        )
     rows = parse_rows(args.validation_rows, n_rows, "--validation-rows")
     if rows.start < train.stop and train.start < rows.stop:
         suggestion = f"0:{rows.start}" if rows.start > 0 else f"{rows.stop}:"
@@ -291,13 +299,44 @@ def _grey_box(args, kwargs) -> dict:
     return parameters
 
 
+def _record(args, path, measured):
+    """``(y, t, u)`` of every row of one CSV file (the options' columns)."""
+    header, data = load_csv(path)
+    t = _times(args, header, data)
+    y = np.column_stack([_column(header, data, c, "--measured") for c in measured])
+    _, u = _inputs(args, header, data)
+    return y, t, u
+
+
+def _files(args) -> list:
+    """The data files (one or more), checked against the row options."""
+    files = args.data if isinstance(args.data, list) else [args.data]
+    if len(files) > 1:
+        for option, value in (
+            ("--train-rows", args.train_rows),
+            ("--validation-rows", args.validation_rows),
+        ):
+            if value:
+                raise UsageError(
+                    f"{option} selects rows of one data file; with several data "
+                    f"files ({len(files)} given) give each record as its own file "
+                    "and the validation records with --validation FILE"
+                )
+    return files
+
+
 def build_request(args) -> Request:
     """Check every option of ``discover``; nothing is computed yet."""
-    header, data = load_csv(args.data)
+    files = _files(args)
+    header, data = load_csv(files[0])
     states, measured, errors = _states(args)
     t_all = _times(args, header, data)
     y_all = np.column_stack([_column(header, data, c, "--measured") for c in measured])
     inputs, u_all = _inputs(args, header, data)
+    records = None
+    if len(files) > 1:
+        records = [(y_all, t_all, u_all)]
+        records += [_record(args, path, measured) for path in files[1:]]
     n_rows = data.shape[0]
     train = (
         parse_rows(args.train_rows, n_rows, "--train-rows")
@@ -330,6 +369,19 @@ def build_request(args) -> Request:
     )
     if u_all is not None:
         kwargs["u"] = u_all[train]
+    if getattr(args, "validation", None):
+        kwargs["validation"] = [
+            tuple(r if inputs else r[:2])
+            for r in (_record(args, path, measured) for path in args.validation)
+        ]
+    if getattr(args, "validation", None) and args.validation_window is not None:
+        kwargs["validation_window"] = _number(
+            args.validation_window,
+            "--validation-window",
+            "--validation-window 50",
+            2,
+            integer=True,
+        )
     if val_rows is not None:
         record = (y_all[val_rows], t_all[val_rows])
         kwargs["validation"] = record + ((u_all[val_rows],) if inputs else ())
@@ -354,4 +406,5 @@ def build_request(args) -> Request:
         model_path=path,
         noise_text=args.noise_variance,
         parameters=parameters,
+        records=records,
     )

@@ -30,7 +30,7 @@ OPTION_OF = {
     "feature_library": "--library",
     "feature_names": "--states / --inputs",
     "validation_window": "--validation-window",
-    "validation": "--validation-rows",
+    "validation": "--validation-rows / --validation",
     "parameters": "--parameters",
     "alpha": "--alpha",
     "input_hold": "--input-hold",
@@ -89,6 +89,12 @@ def _study(request):
     from ..discovery import discover
 
     try:
+        if request.records:
+            ys, ts, us = zip(*request.records)
+            kwargs = dict(request.kwargs)
+            if request.inputs:
+                kwargs["u"] = list(us)
+            return discover(list(ys), list(ts), **kwargs)
         return discover(request.y, request.t, **request.kwargs)
     except (ValueError, TypeError) as exc:
         line = user_line(exc, request.model_path)

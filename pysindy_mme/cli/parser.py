@@ -36,7 +36,10 @@ Every message and what to do about it: docs/errors.md.
 
 HELP = {
     "data": "CSV file: a header row of column names, then one row per sample "
-    "(empty cells or 'nan' are missing measurements). Example: data.csv",
+    "(empty cells or 'nan' are missing measurements). Several files are several "
+    "records (experiments) of one system, fitted together: each its own initial "
+    "state, the parameters and the correction shared; the same columns in each. "
+    "Example: data.csv, or run1.csv run2.csv",
     "--model": "your assumed model, FILE.py:FUNCTION: a vectorised f(x, t) "
     "returning dx/dt with one column per state (f(x, t, u) with --inputs, "
     "f(x, t, u, p) with --parameters). Required. Example: --model my_model.py:f",
@@ -79,8 +82,14 @@ HELP = {
     "of sample: each model's initial state is estimated from the first "
     "--validation-window rows, then it runs free. Must not overlap the training "
     "rows. Default: none. Example: --validation-rows 16000:20000",
+    "--validation": "a CSV file (the same columns as the data) kept out of the "
+    "fit to measure the gain out of sample, by the protocol of --validation-rows; "
+    "repeat it for several records (the RMSEs are pooled over them). Without it "
+    "and with several data files, the last data file is held out whole. "
+    "Default: none. Example: --validation test1.csv --validation test2.csv",
     "--validation-window": "leading validation rows used to estimate the initial "
-    "state (needs --validation-rows). Default: 50. Example: --validation-window 100",
+    "state (needs --validation-rows or --validation). Default: 50. Example: "
+    "--validation-window 100",
     "--alpha": "significance level of the tests (consistency, each term, the "
     "extended model against the assumed one). Default: 0.001. Example: --alpha 0.01",
     "--error-model": "MME's prior on d(t): white (the paper) or random_walk "
@@ -131,7 +140,7 @@ def _discover_parser(sub):
         epilog=DISCOVER_EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    _add(disc, "data")
+    _add(disc, "data", nargs="+")
     _add(disc, "--model", required=True, metavar="FILE.py:FUNCTION")
     _add(disc, "--states", required=True, metavar="NAMES")
     _add(disc, "--measured", metavar="NAMES")
@@ -146,6 +155,7 @@ def _discover_parser(sub):
     _add(disc, "--parameters", metavar="NAME=VALUE,...")
     _add(disc, "--train-rows", metavar="A:B")
     _add(disc, "--validation-rows", metavar="A:B")
+    _add(disc, "--validation", action="append", metavar="FILE")
     _add(disc, "--validation-window", metavar="N")
     _add(disc, "--alpha", default="0.001", metavar="P")
     _add(disc, "--error-model", default="white", metavar="white|random_walk")

@@ -103,9 +103,14 @@ class ModelFunction:
         """The model as a bare ``f(x, t, u)`` with no shape checks.
 
         For hot loops (fixed-step integration) after :meth:`check` has
-        validated the model once; rows of ``x`` must be states.
+        validated the model once; rows of ``x`` must be states. A callable
+        with an ``unchecked()`` method of its own (an
+        :class:`~pysindy_mme.ExtendedModel`) supplies its bare form.
         """
         func = self._func
+        own = getattr(func, "unchecked", None)
+        if self._kind == "callable" and callable(own):
+            return own()
         if self._kind == "predict":
             return lambda x, t, u: np.asarray(
                 func.predict(x) if u is None else func.predict(x, u=u), dtype=float
@@ -167,70 +172,55 @@ class _Budget(Exception):
     """Raised inside the right-hand side when a simulation takes too many steps."""
 
 
-def simulate_model(
-    model,
-    x0,
-    t,
-    u=None,
-    *,
-    n_states: int | None = None,
-    rtol: float = 1e-9,
-    atol: float = 1e-11,
-    method: str = "LSODA",
-    max_evaluations: int | None = None,
-    on_divergence: str = "nan",
-) -> np.ndarray:
-    """Integrate ``dx/dt = model(x, t, u)`` from ``x0`` and sample it on ``t``.
+# solve_ivp's own methods; "rk4" and "auto" are ours (an OdeSolver subclass
+# passes through to solve_ivp as well)
+_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 
-    Parameters
-    ----------
-    model : callable or ModelFunction
-        Vectorised right-hand side (see :class:`ModelFunction`).
-    x0 : array-like, shape (n_states,)
-    t : array-like, shape (n_samples,)
-        Increasing sample times; the simulation starts at ``t[0]``.
-    u : array-like of shape (n_samples, n_inputs), callable ``u(t)`` or None
-        Input; arrays are interpolated linearly between samples.
-    max_evaluations : int, optional
-        Budget of model evaluations (default ``200 n_samples + 10^4``): a
-        stiff or exploding model stops here instead of hanging.
-    on_divergence : {"nan", "raise"}
-        What a run that blows up (leaves ``1e6`` times the initial scale, or
-        the finite range) or exhausts its budget gives: NaN in the rows it
-        did not reach, or a :class:`~pysindy_mme.DivergenceError` naming the
-        time and the state.
 
-    Returns
-    -------
-    x : ndarray, shape (n_samples, n_states)
+def _lean(f: ModelFunction, x0, t0, u0):
+    """``f`` as a bare ``(x (1, n), t (1,), u (1, m) or None) -> (1, n)``.
+
+    An integrator calls the model tens of thousands of times on one row, where
+    the checks of :meth:`ModelFunction.__call__` cost as much as the model.
+    :meth:`ModelFunction.unchecked` is used if, at ``x0``, the checked call
+    passes and the bare one returns a float array of the right shape; else
+    the checked ``f``, so that the integrator meets a bad model's error
+    (a wrong shape, say) as it always did.
     """
-    from ..exceptions import DivergenceError
-    from .integrate import InputSignal
+    x, tt = x0[None, :], np.array([t0], dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            f(x, tt, u0)
+            raw = f.unchecked()
+            probe = raw(x, tt, u0)
+    except Exception:  # the integrator meets it again and says so
+        return f
+    ok = isinstance(probe, np.ndarray) and probe.shape == x.shape
+    return raw if ok and probe.dtype == np.float64 else f
 
-    x0 = np.asarray(x0, dtype=float).ravel()
-    t = np.asarray(t, dtype=float)
-    f = as_model_function(model, n_states or x0.size)
-    signal = InputSignal(u, t)
-    allowed = int(max_evaluations or 200 * t.size + 10_000)
+
+def _run_adaptive(f, x0, t, signal, method, rtol, atol, allowed, limit):
+    """``solve_ivp``: ``(x, reason or None, whether the budget ran out)``."""
+    lean = _lean(f, x0, t[0], signal.at(t[:1]))
     budget = [allowed]
+    reached = [t[0]]  # the furthest time evaluated: how far a stalled run got
 
     def rhs(s, x):
         budget[0] -= 1
         if budget[0] < 0:
             raise _Budget
-        ui = signal.at(np.array([s]))
-        return f(x[None, :], np.array([s]), ui)[0]
+        reached[0] = max(reached[0], s)
+        s_row = np.array([s])
+        return lean(x[None, :], s_row, signal.at(s_row))[0]
 
     # Bound the state so that a diverging model ends the run instead of hanging.
-    limit = 1e6 * max(1.0, float(np.max(np.abs(x0))))
-
     def blow_up(s, x):
         size = float(np.max(np.abs(x)))
         return limit - size if np.isfinite(size) else -1.0
 
     blow_up.terminal = True
     out = np.full((t.size, x0.size), np.nan)
-    reason = None
+    reason, exhausted = None, False
     try:
         with np.errstate(all="ignore"):
             sol = solve_ivp(
@@ -247,9 +237,55 @@ def simulate_model(
         if sol.status == 1 or not sol.success or sol.y.shape[1] < t.size:
             reason = "it left the bound" if sol.status == 1 else sol.message
     except _Budget:
-        reason = f"it needed more than {allowed} model evaluations (stiff or exploding)"
+        reason = (
+            f"it needed more than {allowed} model evaluations by t = "
+            f"{reached[0]:.6g} (stiff or exploding)"
+        )
+        exhausted = True
     except (ValueError, FloatingPointError) as exc:  # root finding on NaN, say
         reason = f"the integrator failed ({exc})"
+    return out, reason, exhausted
+
+
+def _run_rk4(f, x0, t, signal, substeps, limit):
+    """Fixed-step RK4 on the sample grid: ``(x, reason or None)``."""
+    from .integrate import simulate
+
+    inputs = None if signal.is_none else signal
+    out = np.full((t.size, x0.size), np.nan)
+    out[0] = x0
+    try:
+        lean = _lean(f, x0, t[0], signal.on_intervals(0.0, slice(0, 1)))
+
+        def rhs(x, s, u):  # integrate.simulate's form: s a float, u (m,)
+            return lean(x, np.array([s]), None if u is None else u[None, :])
+
+        run = simulate(rhs, x0, t, inputs, substeps=substeps, bound=limit)
+    except (ValueError, FloatingPointError) as exc:
+        return out, f"the integrator failed ({exc})"
+    out = run.x[0]
+    k = int(run.diverged_at[0])
+    if k < 0:
+        return out, None
+    if k == 0:
+        return out, "not finite"
+    # simulate blanks the step that went wrong: redo it to say how it went wrong
+    again = simulate(
+        rhs,
+        out[k - 1],
+        t[k - 1 : k + 1],
+        None if inputs is None else inputs.subset(k - 1, k + 1),
+        substeps=substeps,
+        bound=np.inf,
+    )
+    finite = bool(np.all(np.isfinite(again.x[0, 1])))
+    return out, "it left the bound" if finite else "it stopped being finite"
+
+
+def _outcome(out, reason, t, x0, on_divergence, hint=""):
+    """``out`` for a run that finished; else NaN rows or a DivergenceError."""
+    from ..exceptions import DivergenceError
+
     finite = np.all(np.isfinite(out), axis=1)
     if reason is None and np.all(finite):
         return out
@@ -260,8 +296,128 @@ def simulate_model(
         raise DivergenceError(
             f"the simulation diverged near t = {t[k]:.6g}: {reason or 'not finite'}; "
             f"state {worst} was {last[worst]:.6g} at t = {t[max(k - 1, 0)]:.6g}"
+            f"{hint}"
         )
     return out
+
+
+def _check_method(method, substeps):
+    """``method`` normalised (``"rk4"``, ``"auto"`` or solve_ivp's), checked."""
+    if isinstance(method, str):
+        if method.lower() in ("rk4", "auto"):
+            method = method.lower()
+        elif method not in _IVP_METHODS:
+            raise ValueError(
+                "method must be 'rk4', 'auto' or one of solve_ivp's "
+                f"{list(_IVP_METHODS)}, got {method!r}"
+            )
+    if (
+        isinstance(substeps, bool)
+        or not isinstance(substeps, (int, np.integer))
+        or substeps < 1
+    ):
+        raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+    return method
+
+
+def simulate_model(
+    model,
+    x0,
+    t,
+    u=None,
+    *,
+    n_states: int | None = None,
+    rtol: float = 1e-9,
+    atol: float = 1e-11,
+    method: str = "LSODA",
+    substeps: int = 4,
+    input_hold: str = "linear",
+    max_evaluations: int | None = None,
+    on_divergence: str = "nan",
+) -> np.ndarray:
+    """Integrate ``dx/dt = model(x, t, u)`` from ``x0`` and sample it on ``t``.
+
+    Parameters
+    ----------
+    model : callable or ModelFunction
+        Vectorised right-hand side (see :class:`ModelFunction`).
+    x0 : array-like, shape (n_states,)
+    t : array-like, shape (n_samples,)
+        Increasing sample times; the simulation starts at ``t[0]``.
+    u : array-like of shape (n_samples, n_inputs), callable ``u(t)`` or None
+        Input; arrays are held between samples as ``input_hold`` says.
+    rtol, atol : float
+        Tolerances of the adaptive methods (not used by ``"rk4"``).
+    method : str or scipy OdeSolver, default "LSODA"
+        ``"LSODA"`` (or another :func:`scipy.integrate.solve_ivp` method):
+        adaptive, to ``rtol``/``atol``. ``"rk4"``: classical RK4 with
+        ``substeps`` fixed steps per sample interval
+        (:func:`pysindy_mme.core.integrate.simulate`, the integrator of the
+        study's own free runs); it costs ``4 substeps (n_samples - 1)`` model
+        evaluations whatever the model, steps through kinks and jumps
+        (``sign(v)``) where an adaptive method stalls, and is accurate to
+        ``O(h^4)`` on smooth stretches and ``O(h)`` (``h`` = interval /
+        ``substeps``) across a discontinuity of the right-hand side.
+        ``"auto"``: LSODA, and if it exhausts ``max_evaluations``, RK4 once
+        instead, with a :class:`~pysindy_mme.DiscoveryWarning`.
+    substeps : int, default 4
+        RK4 steps per sample interval (``"rk4"`` and the fallback of
+        ``"auto"``).
+    input_hold : {"linear", "zoh", "cubic"}
+        How an array ``u`` goes between samples
+        (:class:`~pysindy_mme.core.integrate.InputSignal`): linear
+        interpolation, zero-order hold (``u[k]`` on ``[t[k], t[k+1])``, as a
+        digital controller applies it) or a cubic through the neighbours.
+    max_evaluations : int, optional
+        Budget of model evaluations of the adaptive methods (default
+        ``200 n_samples + 10^4``): a stiff or exploding model stops here
+        instead of hanging. RK4's cost is fixed (above) and has no budget.
+    on_divergence : {"nan", "raise"}
+        What a run that blows up (leaves ``1e6`` times the initial scale, or
+        the finite range) or exhausts its budget gives: NaN in the rows it
+        did not reach, or a :class:`~pysindy_mme.DivergenceError` naming the
+        time and the state.
+
+    Returns
+    -------
+    x : ndarray, shape (n_samples, n_states)
+    """
+    import warnings
+
+    from ..exceptions import DiscoveryWarning
+    from .integrate import InputSignal
+
+    method = _check_method(method, substeps)
+    x0 = np.asarray(x0, dtype=float).ravel()
+    t = np.asarray(t, dtype=float)
+    f = as_model_function(model, n_states or x0.size)
+    signal = InputSignal(u, t, hold=input_hold)
+    allowed = int(max_evaluations or 200 * t.size + 10_000)
+    limit = 1e6 * max(1.0, float(np.max(np.abs(x0))))
+    rk4_hint = (
+        f" (fixed-step RK4, {substeps} steps per sample interval: a stiff model "
+        "needs more substeps, or an adaptive method)"
+    )
+    if method == "rk4":
+        out, reason = _run_rk4(f, x0, t, signal, int(substeps), limit)
+        return _outcome(out, reason, t, x0, on_divergence, rk4_hint)
+    adaptive = "LSODA" if method == "auto" else method
+    out, reason, exhausted = _run_adaptive(
+        f, x0, t, signal, adaptive, rtol, atol, allowed, limit
+    )
+    if method == "auto" and exhausted:
+        warnings.warn(
+            f"LSODA needed more than {allowed} model evaluations (a stiff model, "
+            "or a kink or jump in the model that it does not declare, such as "
+            "np.sign in the assumed model); simulated with fixed-step RK4 on the "
+            f"sample grid instead ({substeps} steps per sample interval). "
+            "method='rk4' skips the attempt; method='LSODA' never falls back",
+            DiscoveryWarning,
+            stacklevel=2,
+        )
+        out, reason = _run_rk4(f, x0, t, signal, int(substeps), limit)
+        return _outcome(out, reason, t, x0, on_divergence, rk4_hint)
+    return _outcome(out, reason, t, x0, on_divergence)
 
 
 class ParametricModel:

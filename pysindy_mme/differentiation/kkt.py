@@ -12,6 +12,11 @@ symmetric indefinite with bandwidth ``2 n - 1``; LAPACK's banded LU with
 partial pivoting (``dgbtrf``/``dgbtrs``) solves it in ``O(N n^3)`` time and
 ``O(N n^2)`` memory.
 
+A break between records (interval ``k`` with no dynamics link: the next
+record starts at ``k + 1``) turns ``lam_k``'s block into the dummy identity
+of the last block and drops its couplings, so ``x_{k+1}`` is a free initial
+state; the bandwidth is unchanged.
+
 Global parameters ``theta`` (``p`` of them: correction coefficients,
 physical parameters, measurement offsets) border the band::
 
@@ -76,9 +81,15 @@ class BandedKKT:
     LU overwrites it, so a factor must be used before the next call.)
     """
 
-    def __init__(self, N: int, n: int):
+    def __init__(self, N: int, n: int, breaks=None):
         self.N, self.n = N, n
         self._band = None
+        #: intervals ``k`` with no dynamics link between samples ``k`` and
+        #: ``k + 1`` (a new record starts at ``k + 1``): their multiplier rows
+        #: become ``lam_k = 0`` and ``x_{k+1}`` a free initial state
+        self.breaks = (
+            np.zeros(0, dtype=int) if breaks is None else np.asarray(breaks, int)
+        )
 
     def factor(self, Q, A, S) -> KKTFactor:
         """Assemble from ``Q (N, n, n)``, ``A (N-1, n, n)``, ``S (N-1, n, n)``
@@ -115,6 +126,14 @@ class BandedKKT:
                 blk[1 if lo == 0 else 0 :, b, diag - n] = -1.0
         abT[-1, n:, :] = 0.0
         abT[-1, np.arange(n, 2 * n), diag] = 1.0  # dummy multiplier, last block
+        kb = self.breaks
+        if kb.size:
+            # a break only removes couplings: the band stays the band
+            for b in range(n):
+                abT[kb, b, diag + n - b : diag + 2 * n - b] = 0.0  # A_k (lam rows)
+                abT[kb, n + b, :] = 0.0  # A_k^T, -S_k and the -1 to x_{k+1}
+                abT[kb, n + b, diag] = 1.0  # lam_k = 0: a dummy multiplier
+                abT[kb + 1, b, diag - n] = 0.0  # -x_{k+1} in lam_k's row
         ab = abT.reshape(N * 2 * n, ldab).T
         lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
         if info < 0:  # pragma: no cover - a bug, not a user error

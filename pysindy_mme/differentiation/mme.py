@@ -297,7 +297,7 @@ class MME(MMEChecks, BaseDifferentiation):
         return extended_model_from_sindy(self, sindy_model, assumed_equations, check)
 
     # ----------------------------------------------------------------- fit
-    def fit(self, y, t=1.0, u=None):
+    def fit(self, y, t=1.0, u=None, starts=None):
         """Estimate the states and the model error from measurements.
 
         Parameters
@@ -308,12 +308,17 @@ class MME(MMEChecks, BaseDifferentiation):
             Time step or strictly increasing sample times.
         u : array-like (n_samples, n_inputs), callable or None
             Inputs; overrides the constructor's ``u``.
+        starts : sequence of int, optional
+            Several records concatenated on one sample axis: the samples
+            where a new record starts. Each record has its own initial state
+            and no model error links it to the one before; ``t`` need only
+            increase within each record.
 
         Returns
         -------
         self
         """
-        problem = self.check(y, t, u)
+        problem = self.check(y, t, u, starts)
         smoother, W_spec, R, n = (
             problem.smoother,
             problem.W_spec,
@@ -338,7 +343,7 @@ class MME(MMEChecks, BaseDifferentiation):
         self._store(smoother, search, R, n)
         return self
 
-    def check(self, y, t=1.0, u=None) -> MMEProblem:
+    def check(self, y, t=1.0, u=None, starts=None) -> MMEProblem:
         """Check the settings against the data and set up the solver.
 
         Everything :meth:`fit` checks, without solving (the cost is one
@@ -359,9 +364,20 @@ class MME(MMEChecks, BaseDifferentiation):
             )
         y = self._check_measurements(y)
         N, m = y.shape
-        t = check_time(t, N, "t")
+        starts = self._check_starts(starts, N)
+        if starts.size and np.ndim(t) == 1:
+            bounds = [0, *starts.tolist(), N]
+            t = np.asarray(t, dtype=float)
+            if t.size != N:
+                raise ValueError(
+                    f"t has {t.size} entries but the data have {N} samples"
+                )
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                check_time(t[a:b], b - a, "t")
+        else:
+            t = check_time(t, N, "t")
         measurement, g_jac = self._measurement_model(n, m)
-        R, noise_diagnostics = self._noise(y, t, m)
+        R, noise_diagnostics = self._noise_of_records(y, t, m, starts)
         es = (
             np.arange(n)
             if self.error_states is None
@@ -384,6 +400,7 @@ class MME(MMEChecks, BaseDifferentiation):
                 max_iter=int(self.max_iter),
                 tol=float(self.tol),
                 input_hold=self.input_hold,
+                starts=starts,
             )
 
         smoother = make_smoother(model, es, measurement, g_jac)
@@ -417,6 +434,33 @@ class MME(MMEChecks, BaseDifferentiation):
             noise_diagnostics=noise_diagnostics,
         )
 
+    @staticmethod
+    def _check_starts(starts, N) -> np.ndarray:
+        """The samples where a new record starts, checked (sorted, unique)."""
+        if starts is None:
+            return np.zeros(0, dtype=int)
+        arr = np.unique(np.asarray(starts, dtype=int).ravel())
+        bounds = np.concatenate([[0], arr, [N]])
+        if arr.size and (arr[0] < 2 or arr[-1] > N - 2 or np.any(np.diff(bounds) < 2)):
+            raise ValueError(
+                f"starts must split the {N} samples into records of at least 2 "
+                f"samples each, got {np.asarray(starts).tolist()}"
+            )
+        return arr
+
+    def _noise_of_records(self, y, t, m, starts):
+        """:meth:`_noise` pooled over the records (weighted by their samples)."""
+        if not starts.size or not isinstance(self.noise_variance, str):
+            return self._noise(y, t, m)
+        bounds = [0, *starts.tolist(), y.shape[0]]
+        parts = [
+            self._noise(y[a:b], t[a:b], m) for a, b in zip(bounds[:-1], bounds[1:])
+        ]
+        weights = np.diff(bounds) / y.shape[0]
+        R = sum(w * np.asarray(r, dtype=float) for w, (r, _) in zip(weights, parts))
+        longest = int(np.argmax(np.diff(bounds)))
+        return R, parts[longest][1]
+
     # ------------------------------------------------------------- solving
     def _solve(self, smoother, W, start):
         try:
@@ -440,6 +484,9 @@ class MME(MMEChecks, BaseDifferentiation):
             d_grid[1:-1] = 0.5 * (d_int[1:] + d_int[:-1])
             d_grid[0] = d_int[0]
             d_grid[-1] = d_int[-1]
+            for k in smoother.breaks:  # each record's own ends
+                d_grid[k] = d_int[k - 1]
+                d_grid[k + 1] = d_int[k + 1]
             model = smoother.model
         else:  # "random_walk": d is the augmented part of the state
             es = smoother.model.es

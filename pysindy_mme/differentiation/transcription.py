@@ -187,6 +187,12 @@ class MMESmoother(GaussNewton):
         ``[lower, upper]`` per parameter (``-inf`` / ``inf``: none). Every
         iterate stays inside: each Gauss-Newton step solves its subproblem
         with the bounds (:meth:`_bounded_step`).
+    starts : sequence of int, optional
+        Several records on one sample axis: the samples where a new record
+        starts (after 0). Between the last sample of one record and the first
+        of the next there is no dynamics link (a "break": no defect, no model
+        error, the next record's first state is a free initial state), and
+        ``t`` need only increase within each record.
 
     Attributes
     ----------
@@ -218,12 +224,21 @@ class MMESmoother(GaussNewton):
         measurement_offsets=None,
         input_hold: str = "linear",
         theta_bounds=None,
+        starts=None,
     ):
         self.model = model
         self.y = np.asarray(y, dtype=float)
         self.t = np.asarray(t, dtype=float)
-        self.h = np.diff(self.t)
         self.N, self.m = self.y.shape
+        self.starts = np.unique(np.asarray([] if starts is None else starts, int))
+        #: intervals that are breaks between records (no dynamics link)
+        self.breaks = self.starts - 1
+        self.n_records = 1 + self.starts.size
+        self.h = np.diff(self.t)
+        self.h[self.breaks] = 0.0  # a break is integrated over no time
+        # the interval lengths to divide by (1 on a break, where d = 0)
+        self._h_div = self.h.copy()
+        self._h_div[self.breaks] = 1.0
         self.n = model.n_states
         self.es = np.asarray(error_states, dtype=int)
         self.q = self.es.size
@@ -274,7 +289,7 @@ class MMESmoother(GaussNewton):
         self.state_labels = None
         self._scale = None
         self._HRQ = None
-        self._kkt = BandedKKT(self.N, self.n)
+        self._kkt = BandedKKT(self.N, self.n, self.breaks)
 
     # ------------------------------------------------------------------ setup
     def _set_noise(self, R):
@@ -416,6 +431,14 @@ class MMESmoother(GaussNewton):
                 B[sl] = out.D[:, :, n + q : n + q + p]
                 if n_extra:
                     X[sl] = out.D[:, :, n + q + p :]
+        if self.breaks.size:
+            # no dynamics link across a break: no defect, no sensitivities
+            kb = self.breaks
+            phi[kb] = x[kb + 1]
+            if jacobian:
+                A[kb] = G[kb] = B[kb] = 0.0
+                if n_extra:
+                    X[kb] = 0.0
         if not jacobian:
             return phi
         return (phi, A, G, B, X) if n_extra else (phi, A, G, B)
@@ -506,7 +529,7 @@ class MMESmoother(GaussNewton):
         GW = S = None
         if self.q:
             GW = lin.G @ Winv  # (N-1, n, q)
-            S = (GW @ np.swapaxes(lin.G, 1, 2)) / self.h[:, None, None]
+            S = (GW @ np.swapaxes(lin.G, 1, 2)) / self._h_div[:, None, None]
         fac = self._kkt.factor(Q, lin.A, S)
         E = np.zeros((N, 2 * n, p))
         D = np.zeros((p, p))
@@ -552,7 +575,7 @@ class MMESmoother(GaussNewton):
         lam = z[:-1, n:]
         d_new = lin.d
         if self.q:
-            d_new = -np.einsum("kiq,ki->kq", GW, lam) / self.h[:, None]
+            d_new = -np.einsum("kiq,ki->kq", GW, lam) / self._h_div[:, None]
         logdet = fac.logdet
         if self.p:
             sign, logdet_sc = np.linalg.slogdet(sol.Sc)
@@ -625,6 +648,10 @@ class MMESmoother(GaussNewton):
         # observations given the n free initial states as s^-(N_obs - n),
         # hence |det K| as s^-2n (flat prior on x_0, see the docstring).
         log_s = float(np.log(s))
+        # one free initial state per record (the solver's likelihood counts
+        # one; the others' constant is added here, the same for every W)
+        n_x0 = self.n * self.n_records
+        extra = (self.n_records - 1) * self.n * np.log(2.0 * np.pi)
         return dataclasses.replace(
             res,
             W=W,
@@ -632,9 +659,10 @@ class MMESmoother(GaussNewton):
             d=res.d * s,
             lam=res.lam / s,
             residuals=res.residuals * s,
-            logdet=res.logdet - 2.0 * self.n * log_s,
+            logdet=res.logdet - 2.0 * n_x0 * log_s,
             neg2_log_likelihood=res.neg2_log_likelihood
-            + 2.0 * (self.n_obs - self.n) * log_s,
+            - extra
+            + 2.0 * (self.n_obs - n_x0) * log_s,
             max_defect=res.max_defect * s,
         )
 

@@ -146,6 +146,7 @@ class _Search:
                 fit = more if more.ok else fit
         self.progress(
             f"  fit {len(slots)} term(s): cost {fit.cost:.6g}, {fit.n_iter} it."
+            + ("" if fit.converged else f" ({fit.message})")
         )
         return fit
 

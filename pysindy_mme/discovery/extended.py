@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..core.features import SelectedFeatures
@@ -9,6 +11,42 @@ from ..core.model import as_model_function, simulate_model
 from ..core.tables import sig
 
 __all__ = ["ExtendedModel"]
+
+# Library column names that announce a kink or a jump, for libraries that do
+# not say so themselves (no ``kinked_columns``: a pysindy CustomLibrary, or a
+# PhysicsLibrary inside a GeneralizedLibrary): sign, absolute values
+# (``abs(x)``, ``|x|``), max, min, clip, floor, ceil, round, heaviside, and
+# PhysicsLibrary's own names (``sat(u, 2)``, ``dz(u, 0.1)``, ``over(h1, 10)``,
+# the parts ``v+`` and ``v-``, ``sqrt(h1+)``). A false alarm costs little: the
+# model is then integrated with fixed-step RK4, accurate on smooth models too.
+_KINKED_NAME = re.compile(
+    r"sign\(|abs\(|\||max\(|min\(|clip|floor|ceil|round|heaviside"
+    r"|sat\(|dz\(|over\(|\w[+-](?=$|[\s)])"
+)
+
+
+def _bare_assumed(assumed, n_states, n_inputs):
+    """The assumed model without checks, if it is safe on a probe; else checked.
+
+    The probe has ``n_states + 1`` rows (so that equations stacked as rows
+    cannot pass for states); a one-state model may return ``(n_rows,)``.
+    """
+    raw = assumed.unchecked()
+    rows = n_states + 1
+    x = np.zeros((rows, n_states))
+    u = np.zeros((rows, n_inputs)) if n_inputs else None
+    try:
+        with np.errstate(all="ignore"):
+            probe = raw(x, np.zeros(rows), u)
+    except Exception:  # the checked model says what is wrong when it is used
+        return assumed
+    if not isinstance(probe, np.ndarray) or probe.dtype != np.float64:
+        return assumed
+    if probe.shape == x.shape:
+        return raw
+    if n_states == 1 and probe.shape == (rows,):
+        return lambda x, t, u: raw(x, t, u).reshape(-1, 1)
+    return assumed
 
 
 def _format_terms(coefs, names, digits) -> str:
@@ -49,6 +87,9 @@ class ExtendedModel:
         Text of the assumed right-hand sides, shown by :meth:`equations`.
     z_reference : ndarray, optional
         Library input data used to check the fast evaluation of terms.
+    substeps : int, default 4
+        RK4 steps per sample interval of :meth:`simulate` when it integrates
+        with fixed steps; a study sets the number its own free runs used.
 
     Attributes
     ----------
@@ -66,7 +107,15 @@ class ExtendedModel:
         intercept=None,
         assumed_equations=None,
         z_reference=None,
+        substeps=4,
     ):
+        if (
+            isinstance(substeps, bool)
+            or not isinstance(substeps, (int, np.integer))
+            or substeps < 1
+        ):
+            raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+        self.substeps = int(substeps)
         self.state_names = list(state_names)
         self.input_names = list(input_names)
         self.n_states = len(self.state_names)
@@ -133,22 +182,128 @@ class ExtendedModel:
     def __call__(self, x, t, u=None) -> np.ndarray:
         return self.predict(x, u=u, t=t)
 
-    def simulate(self, x0, t, u=None, **kwargs) -> np.ndarray:
+    @property
+    def kinked_terms(self) -> list:
+        """Names of the correction's terms with a kink or a jump (``sign(v)``).
+
+        The library's own ``kinked_columns`` says which of the active
+        columns are not smooth (:class:`~pysindy_mme.PhysicsLibrary` has
+        it); any other library is judged by its column names (``sign(``,
+        ``abs(``, ``|``, ``max(``, ``min(``, ``clip``, ``floor``, ``round``
+        ...). Only terms with a nonzero coefficient count.
+        """
+        active = [int(i) for i in self.active_]
+        if not active:
+            return []
+        own = getattr(self.feature_library, "kinked_columns", None)
+        if callable(own):
+            kinked = {int(i) for i in own(active)}
+        else:
+            names = self.library_feature_names
+            kinked = {i for i in active if _KINKED_NAME.search(names[i])}
+        return [self.library_feature_names[i] for i in active if i in kinked]
+
+    def unchecked(self):
+        """The right-hand side as a bare ``f(x, t, u)`` for integrator loops.
+
+        The same values as :meth:`predict` without its checks and
+        conversions: ``x`` ``(n_rows, n_states)``, ``t`` ``(n_rows,)``, ``u``
+        ``(n_rows, n_inputs)`` or None, all float arrays.
+        """
+        assumed = _bare_assumed(self._assumed, self.n_states, self.n_inputs)
+        b = self.correction_intercept_.copy()
+        if not self.active_.size:
+            return lambda x, t, u=None: assumed(x, t, u) + b
+        coef = np.ascontiguousarray(self.correction_coef_[:, self.active_].T)
+        features = self._features
+
+        def rhs(x, t, u=None):
+            z = x if u is None else np.concatenate((x, u), axis=1)
+            return assumed(x, t, u) + features(z) @ coef + b
+
+        return rhs
+
+    def simulate(
+        self,
+        x0,
+        t,
+        u=None,
+        method="auto",
+        *,
+        substeps: int | None = None,
+        input_hold: str = "linear",
+        **kwargs,
+    ) -> np.ndarray:
         """Integrate the extended model from ``x0`` on the times ``t``.
 
-        ``u`` is an array on ``t`` (interpolated linearly) or a callable
-        ``u(t)``. Keyword arguments go to
-        :func:`~pysindy_mme.core.model.simulate_model` (``rtol``, ``atol``,
-        ``method``, ``max_evaluations``). It returns, or raises
-        :class:`~pysindy_mme.DivergenceError` naming the time and the state
-        where the model blew up (or turned so stiff that it exhausted its
-        budget of evaluations: it never hangs); ``TypeError``/``ValueError``
-        for bad arguments.
+        Parameters
+        ----------
+        x0 : array-like (n_states,)
+        t : array-like (n_samples,)
+        u : array-like (n_samples, n_inputs) or callable ``u(t)``, optional
+            Required when the model has inputs. An array is taken between
+            samples as ``input_hold`` says.
+        method : {"auto", "rk4"} or a solve_ivp method, default "auto"
+            ``"auto"``: fixed-step RK4 when a term of the correction has a
+            kink or a jump (:attr:`kinked_terms`, e.g. Coulomb friction
+            ``sign(v)``), LSODA otherwise. Adaptive steppers stall at a
+            discontinuity: they halve the step until the error estimate
+            passes, at every crossing, and a carriage that sticks at
+            ``v = 0`` makes ``sign(v)`` switch at every step, so LSODA at
+            ``rtol = 1e-9`` took minutes on a 25,000-sample record. RK4 with
+            ``substeps`` steps per sample interval costs a fixed
+            ``4 substeps`` evaluations per sample (its error is ``O(h)``,
+            ``h`` the step, where the right-hand side jumps, ``O(h^4)``
+            elsewhere), and it is the integrator of the study's own free
+            runs (:func:`~pysindy_mme.core.integrate.simulate`): with the
+            study's ``substeps`` the simulation reproduces the study's
+            numbers, and the user sees what the study saw. If LSODA exhausts
+            its budget of evaluations (``max_evaluations``) on a model not
+            known to have a kink (an ``np.sign`` inside the assumed model,
+            say), ``"auto"`` integrates once more with RK4 and issues a
+            :class:`~pysindy_mme.DiscoveryWarning` instead of raising.
+            ``"rk4"``, ``"LSODA"`` (or another solve_ivp method) force one.
+        substeps : int, optional
+            RK4 steps per sample interval (default :attr:`substeps`, 4
+            unless the model was built with another number).
+        input_hold : {"linear", "zoh", "cubic"}, default "linear"
+            Inputs between samples: linear interpolation, zero-order hold
+            (``u[k]`` on ``[t[k], t[k+1])``: a controller's output), or a
+            cubic through the neighbouring samples.
+        **kwargs
+            To :func:`~pysindy_mme.core.model.simulate_model`: ``rtol``,
+            ``atol``, ``max_evaluations`` (the adaptive methods),
+            ``on_divergence`` (default ``"raise"``).
+
+        Returns
+        -------
+        ndarray (n_samples, n_states)
+
+        Raises
+        ------
+        DivergenceError
+            Naming the time and the state where the model blew up (or,
+            under an explicit adaptive method, turned so stiff that it
+            exhausted its budget of evaluations: it never hangs).
+        TypeError, ValueError
+            Bad arguments.
         """
         if self.n_inputs and u is None:
             raise TypeError(f"u is required: the model has inputs {self.input_names}")
         kwargs.setdefault("on_divergence", "raise")
-        return simulate_model(self, x0, t, u, n_states=self.n_states, **kwargs)
+        if isinstance(method, str) and method.lower() == "auto" and self.kinked_terms:
+            method = "rk4"
+        return simulate_model(
+            self,
+            x0,
+            t,
+            u,
+            n_states=self.n_states,
+            method=method,
+            substeps=self.substeps if substeps is None else substeps,
+            input_hold=input_hold,
+            **kwargs,
+        )
 
     def equations(self, precision: int = 4) -> list:
         """Right-hand sides, the assumed part and the correction shown apart.

@@ -76,6 +76,10 @@ class FreeRun:
     diverged_at: float | None = None
     model: object = None
     window: int | None = None
+    #: with several records: each record's own run (``rmse`` is pooled)
+    records: list | None = None
+    #: with several fitting records: each record's fitted initial state
+    x0s: list | None = None
 
 
 @dataclass

@@ -101,6 +101,10 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
     """
     n = engine.n_states
     K = min(engine.t.size, MAX_SAMPLES)
+    starts = getattr(engine, "starts", ())
+    if len(starts):
+        # several records: the first one's free run (its own initial state)
+        K = min(K, int(starts[0]))
     # with no fitted constants only the initial states could trade off, and a
     # state nothing measured depends on is refused before the study starts
     if fit.theta.size == 0 or K < 3 or not np.all(np.isfinite(fit.x[:K])):

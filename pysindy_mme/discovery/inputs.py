@@ -24,7 +24,27 @@ from ..differentiation import MME
 from .parameters import parameter_spec
 from .placement import default_error_states
 
-__all__ = ["Study", "check_study", "MME_KEYWORDS"]
+__all__ = ["Study", "Record", "check_study", "MME_KEYWORDS", "MIN_RECORD_SAMPLES"]
+
+#: fewest samples of one record among several
+MIN_RECORD_SAMPLES = 10
+
+
+@dataclass(frozen=True)
+class Record:
+    """One experiment: measurements ``y``, times ``t``, inputs ``u`` (or None).
+
+    ``discover([Record(y1, t1), Record(y2, t2)], assumed_model=...)`` fits
+    several records at once: each has its own initial state, all share the
+    grey-box parameters and the correction terms; ``validation=`` takes a
+    list of them too. ``t`` is a time array (or the time step); each
+    record's times start anywhere.
+    """
+
+    y: object
+    t: object
+    u: object = None
+
 
 #: discover's keywords that configure the estimator (also settable via mme=),
 #: with their defaults
@@ -149,6 +169,25 @@ class Study:
     readings: np.ndarray | None = None
     clipped_cut: tuple = (0, 0)
     validation_clipped_cut: tuple = (0, 0)
+    #: samples where a new record starts (empty: one record); the records
+    #: are concatenated on the sample axis with no dynamics link between
+    starts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    #: every validation record ``(y, t, u)`` (``validation`` is the first)
+    validation_records: list | None = None
+
+    @property
+    def n_records(self) -> int:
+        return 1 + len(self.starts)
+
+    @property
+    def record_slices(self) -> list:
+        """The rows of each record, in order."""
+        bounds = [0, *(int(k) for k in self.starts), self.t.size]
+        return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+    @property
+    def record_sizes(self) -> list:
+        return [s.stop - s.start for s in self.record_slices]
 
     @property
     def censored(self) -> bool:
@@ -394,9 +433,34 @@ def censor_record(y, option, fitting: Clipping | None = None):
     return found, found.censor(y) if found else y
 
 
+def _is_record_list(value) -> bool:
+    """A list of records (Record or (y, t[, u]) tuples), not one (y, t) pair."""
+    if isinstance(value, Record):
+        return False
+    return (
+        isinstance(value, (list, tuple))
+        and len(value) > 0
+        and all(
+            isinstance(r, Record)
+            or (isinstance(r, tuple) and len(r) in (2, 3) and np.ndim(r[0]) >= 1)
+            for r in value
+        )
+        and (isinstance(value, list) or all(isinstance(r, Record) for r in value))
+    )
+
+
+def _as_tuple(record):
+    if isinstance(record, Record):
+        return (
+            (record.y, record.t) if record.u is None else (record.y, record.t, record.u)
+        )
+    return record
+
+
 def _validation(validation, m, n_inputs, name="validation y"):
     if validation is None:
         return None
+    validation = _as_tuple(validation)
     if not isinstance(validation, (tuple, list)) or len(validation) not in (2, 3):
         raise TypeError("validation must be a tuple (y, t) or (y, t, u)")
     y_v = val.as_float_array(validation[0], name, ndim=(1, 2), allow_nan=True)
@@ -404,9 +468,9 @@ def _validation(validation, m, n_inputs, name="validation y"):
         y_v = y_v[:, None]
     if y_v.shape[1] != m:
         raise ValueError(
-            f"validation y has {y_v.shape[1]} columns but {m} channels are measured"
+            f"{name} has {y_v.shape[1]} columns but {m} channels are measured"
         )
-    t_v = val.check_time(validation[1], y_v.shape[0], "validation t")
+    t_v = val.check_time(validation[1], y_v.shape[0], name[:-1] + "t")
     u_v = None
     if n_inputs:
         if len(validation) != 3:
@@ -414,6 +478,142 @@ def _validation(validation, m, n_inputs, name="validation y"):
         u_v = val.as_float_array(validation[2], "validation u", ndim=(1, 2))
         u_v = u_v.reshape(y_v.shape[0], -1)
     return y_v, t_v, u_v
+
+
+def _training_records(y, t, u):
+    """Several fitting records, checked and concatenated, or None for one.
+
+    Returns ``(y, t, u, starts, y_columns, u_columns)``: the records on one
+    sample axis (``t`` checked within each record), and the samples where
+    each record after the first starts.
+    """
+    listed = isinstance(y, (list, tuple)) and len(y) > 0
+    if listed and all(isinstance(r, Record) for r in y):
+        if t is not None or u is not None:
+            raise TypeError(
+                "y is a list of Record: give t and u inside each Record, not as "
+                "t= or u="
+            )
+        ys, ts, us = [r.y for r in y], [r.t for r in y], [r.u for r in y]
+    elif (
+        listed
+        and all(hasattr(r, "shape") and np.ndim(r) >= 1 for r in y)
+        and isinstance(t, (list, tuple))
+    ):
+        ys, ts = list(y), list(t)
+        if len(ts) != len(ys):
+            raise ValueError(
+                f"t has {len(ts)} time arrays but y has {len(ys)} records: one "
+                "time array (or time step) per record"
+            )
+        if u is None:
+            us = [None] * len(ys)
+        elif isinstance(u, (list, tuple)) and len(u) == len(ys):
+            us = list(u)
+        else:
+            given = len(u) if isinstance(u, (list, tuple)) else "one array"
+            raise ValueError(
+                f"u must be a list of {len(ys)} input arrays, one per record of y "
+                f"(got {given})"
+            )
+    else:
+        if listed and any(isinstance(r, Record) for r in y):
+            raise TypeError("y mixes Record and other entries: give a list of Record")
+        return None
+    if any(r is None for r in us) and not all(r is None for r in us):
+        raise ValueError("u: give inputs for every record of y or for none")
+    y_cols, u_cols = _columns(ys[0]), _columns(us[0])
+    y_out, t_out, u_out = [], [], []
+    for i, (yi, ti, ui) in enumerate(zip(ys, ts, us)):
+        yi = val.as_float_array(yi, f"y[{i}]", ndim=(1, 2), allow_nan=True)
+        yi = yi[:, None] if yi.ndim == 1 else yi
+        if yi.shape[0] < MIN_RECORD_SAMPLES:
+            raise ValueError(
+                f"y[{i}] has {yi.shape[0]} samples: each record needs at least "
+                f"{MIN_RECORD_SAMPLES}"
+            )
+        if y_out and yi.shape[1] != y_out[0].shape[1]:
+            raise ValueError(
+                f"y[{i}] has {yi.shape[1]} columns but y[0] has "
+                f"{y_out[0].shape[1]}: every record measures the same channels"
+            )
+        if np.all(np.isnan(yi)):
+            raise ValueError(f"y[{i}] contains no finite measurement")
+        ti = val.check_time(ti, yi.shape[0], f"t[{i}]")
+        if ui is not None:
+            ui = val.as_float_array(ui, f"u[{i}]", ndim=(1, 2))
+            ui = ui[:, None] if ui.ndim == 1 else ui
+            if ui.shape[0] != yi.shape[0]:
+                raise ValueError(
+                    f"u[{i}] has {ui.shape[0]} rows but y[{i}] has {yi.shape[0]} "
+                    "samples"
+                )
+            if u_out and ui.shape[1] != u_out[0].shape[1]:
+                raise ValueError(
+                    f"u[{i}] has {ui.shape[1]} columns but u[0] has {u_out[0].shape[1]}"
+                )
+            u_out.append(ui)
+        y_out.append(yi)
+        t_out.append(ti)
+    starts = np.cumsum([r.shape[0] for r in y_out])[:-1]
+    return (
+        np.vstack(y_out),
+        np.concatenate(t_out),
+        np.vstack(u_out) if u_out else None,
+        starts.astype(int),
+        y_cols,
+        u_cols,
+    )
+
+
+def _record_edges(y, clipping, starts):
+    """:func:`clipped_edges` per record: ``(rows kept, cut, new starts)``."""
+    bounds = [0, *starts.tolist(), y.shape[0]]
+    keep, lead, trail, sizes = [], 0, 0, []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        part = clipping.rows(slice(a, b)) if clipping else clipping
+        rows, (ld, tr) = clipped_edges(y[a:b], part)
+        idx = np.arange(a, b)[rows]
+        if idx.size < MIN_RECORD_SAMPLES:
+            raise ValueError(
+                f"y[{len(sizes)}] has {idx.size} samples left once the clipped "
+                f"readings at its ends are cut: each record needs at least "
+                f"{MIN_RECORD_SAMPLES}"
+            )
+        keep.append(idx)
+        sizes.append(idx.size)
+        lead, trail = lead + ld, trail + tr
+    return np.concatenate(keep), (lead, trail), np.cumsum(sizes)[:-1].astype(int)
+
+
+def _validation_records(validation, m, n_inputs, clipped, levels, window):
+    """Each validation record checked and censored: ``(records, clippings,
+    cuts)`` (lists); a single ``(y, t[, u])`` is a list of one."""
+    if validation is None:
+        return None, [None], [(0, 0)]
+    listed = _is_record_list(validation)
+    items = list(validation) if listed else [validation]
+    records, clippings, cuts = [], [], []
+    for i, item in enumerate(items):
+        name = f"validation[{i}] y" if listed else "validation y"
+        y_v, t_v, u_v = _validation(item, m, n_inputs, name)
+        if listed and y_v.shape[0] <= window + 1:
+            raise ValueError(
+                f"validation[{i}] has {y_v.shape[0]} samples: it needs more than "
+                f"validation_window + 1 = {window + 1} (the initial state comes "
+                "from the first validation_window samples)"
+            )
+        found, y_c = censor_record(y_v, clipped, levels)
+        if np.all(np.isnan(y_c)):
+            raise ValueError(
+                f"every reading of the {name} is on the sensor's limits "
+                "(clipped): nothing is left to validate on"
+            )
+        rows_v, cut = clipped_edges(y_c, found)
+        records.append((y_c[rows_v], t_v[rows_v], None if u_v is None else u_v[rows_v]))
+        clippings.append(found.rows(rows_v))
+        cuts.append(cut)
+    return records, clippings, cuts
 
 
 def _inputs_array(u, n_samples):
@@ -571,7 +771,14 @@ def check_study(
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
-    y_cols, u_cols = _columns(y), _columns(u)
+    several = _training_records(y, t, u)
+    starts = np.zeros(0, dtype=int)
+    if several is not None:
+        y, t, u, starts, y_cols, u_cols = several
+    else:
+        if t is None:
+            raise TypeError("discover() needs t (the sample times or the time step)")
+        y_cols, u_cols = _columns(y), _columns(u)
     y = val.as_float_array(y, "y", ndim=(1, 2), allow_nan=True)
     if y.ndim == 1:
         y = y[:, None]
@@ -586,12 +793,18 @@ def check_study(
             "left to fit; give clipped='keep' to fit them as readings"
         )
     n_samples = y.shape[0]
-    t = val.check_time(t, n_samples, "t")
+    if not starts.size:
+        t = val.check_time(t, n_samples, "t")
     alpha, min_effect, window = _check_options(
         alpha, min_effect, refit, input_hold, offsets, validation_window
     )
     u = _inputs_array(u, n_samples)
-    rows, cut = clipped_edges(y, clipping)
+    if starts.size:
+        rows, cut, starts = _record_edges(y, clipping, starts)
+        if rows.size == n_samples:
+            rows, cut = slice(0, n_samples), (0, 0)
+    else:
+        rows, cut = clipped_edges(y, clipping)
     levels = clipping  # the sensor's limits, found on the whole record
     if cut != (0, 0):
         y, readings, t = y[rows], readings[rows], t[rows]
@@ -623,23 +836,11 @@ def check_study(
     )
     library = _library(feature_library)
     optimizer = _optimizer(optimizer)
-    validation = _validation(validation, y.shape[1], n_inputs)
-    validation_clipping, validation_cut = None, (0, 0)
-    if validation is not None:
-        validation_clipping, y_v = censor_record(validation[0], clipped, levels)
-        if np.all(np.isnan(y_v)):
-            raise ValueError(
-                "every reading of the validation y is on the sensor's limits "
-                "(clipped): nothing is left to validate on"
-            )
-        rows_v, validation_cut = clipped_edges(y_v, validation_clipping)
-        u_v = validation[2]
-        validation = (
-            y_v[rows_v],
-            validation[1][rows_v],
-            None if u_v is None else u_v[rows_v],
-        )
-        validation_clipping = validation_clipping.rows(rows_v)
+    validation_records, v_clippings, v_cuts = _validation_records(
+        validation, y.shape[1], n_inputs, clipped, levels, window
+    )
+    validation = None if validation_records is None else validation_records[0]
+    validation_clipping, validation_cut = v_clippings[0], v_cuts[0]
     if assumed_equations is not None and len(assumed_equations) != n_states:
         raise ValueError(
             f"assumed_equations has {len(assumed_equations)} entries, expected "
@@ -647,7 +848,10 @@ def check_study(
         )
     _check_size(library, y, n_states + n_inputs)
     placement = _place_model_error(est, y, t, u_est, int(n_states), state_names)
-    problem = est.check(y, t, u_est)  # shapes, observability, first evaluation
+    # shapes, observability, first evaluation
+    problem = (
+        est.check(y, t, u_est, starts=starts) if starts.size else est.check(y, t, u_est)
+    )
     est.set_params(noise_variance=problem.noise_covariance)  # 'auto' resolved once
     measured, channel_names = _channels(est, n_states, state_names, y.shape[1])
     u_grid = None if u_est is None else np.asarray(problem.smoother.u_grid(), float)
@@ -689,5 +893,7 @@ def check_study(
         readings=readings,
         clipped_cut=cut,
         validation_clipped_cut=validation_cut,
+        starts=starts,
+        validation_records=validation_records,
         **_noise_record(problem),
     )

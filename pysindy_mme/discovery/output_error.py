@@ -249,6 +249,11 @@ class OutputErrorModel:
     bounds : ndarray (n_physical, 2) or None
         ``[lower, upper]`` per physical parameter (``-inf`` / ``inf``: none);
         every fit keeps them inside. Coefficients and offsets are unbounded.
+    starts : sequence of int, optional
+        Several records on one sample axis: the samples where a new record
+        starts. The defect constraint across each break is dropped, so every
+        record's first state is a free initial state (counted in ``n_free``);
+        the parameters and the correction are shared.
     """
 
     def __init__(
@@ -265,7 +270,10 @@ class OutputErrorModel:
         n_offsets=0,
         n_substeps=1,
         bounds=None,
+        starts=None,
     ):
+        self.starts = np.asarray([] if starts is None else starts, dtype=int)
+        self.n_records = 1 + self.starts.size
         self.base = base
         self.n_states = int(n_states)
         self.n_physical = int(n_physical)
@@ -322,6 +330,7 @@ class OutputErrorModel:
             theta_init=theta0,
             measurement_offsets=offsets,
             theta_bounds=self._theta_bounds(model.n_params),
+            starts=self.starts,
         )
 
     def _theta_bounds(self, p):
@@ -390,7 +399,9 @@ class OutputErrorModel:
             x=res.x,
             cost=float(res.measurement_cost),
             n_residuals=self.n_residuals,
-            n_free=self.n_states + res.theta.size - int(at_bound.sum()),
+            n_free=self.n_states * self.n_records
+            + res.theta.size
+            - int(at_bound.sum()),
             converged=converged,
             message=message,
             rank_deficient=res.rank_deficient,
@@ -432,6 +443,7 @@ class OutputErrorModel:
             self.R,
             self.measurement,
             n_substeps=self.n_substeps,
+            starts=self.starts,
         )
         fit = held.fit((), np.zeros(0), x_start, max_iter=max_iter)
         return OutputErrorFit(
@@ -457,7 +469,7 @@ class OutputErrorModel:
             x=np.asarray(x_start, dtype=float),
             cost=np.inf,
             n_residuals=self.n_residuals,
-            n_free=self.n_states + p,
+            n_free=self.n_states * self.n_records + p,
             converged=False,
             message=message,
             rank_deficient=False,
@@ -481,6 +493,7 @@ class OutputErrorModel:
             self.n_offsets,
             n_substeps,
             self.bounds,
+            self.starts,
         )
         other.noise_inflation = self.noise_inflation
         return other

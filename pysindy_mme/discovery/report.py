@@ -19,10 +19,22 @@ def _header(res) -> list:
     noise = ", ".join(sig(v, 3) for v in np.diag(res.noise_cov))
     source = res.study.noise_description or "stated by the user"
     inputs = f"; inputs: {', '.join(res.input_names)}" if res.input_names else ""
+    study = res.study
+    if study.n_records > 1:
+        spans = ", ".join(
+            f"{sig(t[p.start])} .. {sig(t[p.stop - 1])}" for p in study.record_slices
+        )
+        data = (
+            f"Data: {study.n_records} records, "
+            f"{' + '.join(str(k) for k in study.record_sizes)} samples (t = {spans}; "
+            "each its own initial state, shared parameters and correction)"
+        )
+    else:
+        data = f"Data: {t.size} samples over t = {sig(t[0])} .. {sig(t[-1])}"
     out = [
         "pysindy-mme discovery report",
         "=" * 28,
-        f"Data: {t.size} samples over t = {sig(t[0])} .. {sig(t[-1])}; measured: "
+        f"{data}; measured: "
         f"{', '.join(res.channel_names)}; states: {', '.join(res.state_names)}"
         + inputs,
         f"Measurement noise variance: {noise} ({source})",
@@ -125,7 +137,7 @@ def _what_is_wrong(res) -> list:
     out.append(
         f"Consistency test: chi2 = {sig(res.consistency_chi2)} on "
         f"{res.consistency_dof} dof ({res.assumed.fit.n_residuals} residuals less "
-        f"{res.study.n_states} initial states), "
+        f"{res.study.n_states * res.study.n_records} initial states), "
         f"p = {p_value(res.consistency_p_value)} -> {verdict} (alpha = {res.alpha})."
     )
     ratio = ", ".join(sig(v, 4) for v in np.atleast_1d(res.mme.covariance_ratio_))
@@ -304,10 +316,18 @@ def _gain(res) -> list:
             "Clipped readings are left out of every RMSE: a reading on the sensor's "
             "limit says only that the value is at or beyond it."
         )
-    out.append(
-        "In-sample: each model run free over this record from the initial state "
-        "of its fit to it (the extended model's terms were chosen on it)."
-    )
+    if res.study.n_records > 1:
+        out.append(
+            f"In-sample: each model run free over each of the {res.study.n_records} "
+            "records from that record's initial state of its fit to them, the RMSE "
+            "pooled over the records (the extended model's terms were chosen on "
+            "them)."
+        )
+    else:
+        out.append(
+            "In-sample: each model run free over this record from the initial state "
+            "of its fit to it (the extended model's terms were chosen on it)."
+        )
     unconverged = [name for name, ok in g.converged.items() if not ok]
     if unconverged:
         out.append(

@@ -108,7 +108,11 @@ def rk4_substeps(study, rhs_rows, x, t) -> int:
     jac = rowwise_jacobian(lambda z: rhs_rows(z, stride), xs, rel_step=1e-6)
     jac[~np.isfinite(jac)] = 0.0
     rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
-    dt = float(np.max(np.diff(t)))
+    steps = np.diff(t)
+    starts = getattr(study, "starts", ())
+    if len(starts) and t.size == study.t.size:
+        steps = np.delete(steps, np.asarray(starts, dtype=int) - 1)  # no breaks
+    dt = float(np.max(steps))
     auto = int(min(50, max(1, np.ceil(dt * rho / 0.5))))
     return max(auto, int(study.mme.n_substeps))
 
@@ -128,6 +132,7 @@ def output_error_engine(study, features, substeps) -> OutputErrorModel:
         n_offsets=study.y.shape[1] if study.offsets else 0,
         n_substeps=substeps,
         bounds=study.parameter_bounds,
+        starts=study.starts,
     )
 
 
@@ -164,7 +169,7 @@ def _assumed_fit(study, fit, substeps, notes=()) -> AssumedFit:
             "the output-error fit of the assumed model did not converge "
             f"({stop_reason(fit)})"
         )
-    dof = max(fit.n_residuals - study.n_states, 1)
+    dof = max(fit.n_residuals - study.n_states * study.n_records, 1)
     p = float(stats.chi2.sf(fit.cost, dof)) if np.isfinite(fit.cost) else 0.0
     return AssumedFit(
         fit=fit,
@@ -204,7 +209,10 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
         mme.set_params(assumed_model=study.assumed_at(assumed.fit.physical))
     if study.offsets and assumed.fit.ok:
         y = study.y - assumed.fit.offsets
-    mme.fit(y, study.t, study.inputs.u)
+    if study.n_records > 1:
+        mme.fit(y, study.t, study.inputs.u, starts=study.starts)
+    else:
+        mme.fit(y, study.t, study.inputs.u)
     notes = (
         []
         if mme.converged_
@@ -391,9 +399,57 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
             )
     if study.validation is None:
         return gain
-    runs = validation_runs(study, models, features, substeps)
-    _set_out_of_sample(gain, runs, study.validation_window, "the validation record")
+    records = study.validation_records or [study.validation]
+    if len(records) == 1:
+        runs = validation_runs(study, models, features, substeps)
+        source = "the validation record"
+    else:
+        runs = pooled_runs(
+            [
+                validation_runs(study, models, features, substeps, record)
+                for record in records
+            ],
+            [record[0] for record in records],
+        )
+        source = f"the {len(records)} validation records (RMSE pooled over them)"
+    _set_out_of_sample(gain, runs, study.validation_window, source)
     return gain
+
+
+def pooled_runs(per_record: list, ys: list) -> dict:
+    """One :class:`FreeRun` per model from its runs on several records.
+
+    ``x`` is the records' runs one after the other, ``x0`` the first
+    record's initial state, ``records`` the runs themselves, and ``rmse``
+    pooled over the records: the root of the mean squared error over every
+    sample each run scores (after its window), all records together. A run
+    that diverged on any record has no pooled RMSE (inf).
+    """
+    out = {}
+    for name in per_record[0]:
+        runs = [r[name] for r in per_record]
+        sq = np.zeros(ys[0].shape[1])
+        count = np.zeros(ys[0].shape[1])
+        for run, y in zip(runs, ys):
+            skip = run.window or 0
+            y_s = np.asarray(y, float)[skip:]
+            # each record's RMSE times its count is its sum of squares
+            seen = np.isfinite(y_s).sum(axis=0)
+            sq += np.asarray(run.rmse, float) ** 2 * seen
+            count += seen
+        with np.errstate(all="ignore"):
+            pooled = np.sqrt(sq / np.maximum(count, 1))
+        diverged = [r.diverged_at for r in runs if r.diverged_at is not None]
+        out[name] = FreeRun(
+            x0=runs[0].x0,
+            x=np.vstack([r.x for r in runs]),
+            rmse=np.where(np.isfinite(pooled), pooled, np.inf),
+            diverged_at=diverged[0] if diverged else None,
+            model=runs[0].model,
+            window=runs[0].window,
+            records=runs,
+        )
+    return out
 
 
 def _set_out_of_sample(gain, runs, window, source) -> None:
@@ -426,9 +482,32 @@ def in_sample_run(study, fit, model, substeps) -> FreeRun:
         return measure(x) + offsets
 
     guess = np.where(np.isfinite(fit.x), fit.x, 0.0)
-    return free_run(
-        model, fit.x[0], study.t, study.inputs, substeps, shifted, study.y, 0, guess
+    if study.n_records == 1:
+        return free_run(
+            model, fit.x[0], study.t, study.inputs, substeps, shifted, study.y, 0, guess
+        )
+    # several records: each run restarts from its record's fitted initial state
+    runs = [
+        free_run(
+            model,
+            fit.x[part.start],
+            study.t[part],
+            study.inputs.subset(part.start, part.stop),
+            substeps,
+            shifted,
+            study.y[part],
+            0,
+            guess[part],
+        )
+        for part in study.record_slices
+    ]
+    pooled = pooled_runs(
+        [{"run": r} for r in runs], [study.y[p] for p in study.record_slices]
     )
+    run = pooled["run"]
+    run.window = None
+    run.x0s = [fit.x[p.start] for p in study.record_slices]
+    return run
 
 
 #: share of the fitting record held out when no validation record is given
@@ -477,6 +556,8 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     """
     from dataclasses import replace
 
+    if study.n_records > 1:
+        return _held_out_record(study, fits, build_extended, features, substeps)
     split = held_out_split(study, None if runs is None else runs["assumed"])
     if split is None:
         return None
@@ -517,6 +598,47 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     )
     converged = refit_a.converged and refit_e.converged
     return runs, source, window, converged
+
+
+def _held_out_record(study, fits, build_extended, features, substeps):
+    """:func:`held_out_runs` for several records: the last record held out
+    whole (both models refitted on the others), None when it is too short."""
+    from dataclasses import replace
+
+    last = study.record_slices[-1]
+    size = last.stop - last.start
+    window = min(study.validation_window, max(2, size // 5))
+    if size - window < MIN_HELD_OUT:
+        return None
+    keep = slice(0, last.start)
+    u = study.u
+    rest = replace(
+        study,
+        y=study.y[keep],
+        t=study.t[keep],
+        u=None if u is None else u[keep],
+        inputs=study.inputs.subset(keep.start, keep.stop),
+        x_init=study.x_init[keep],
+        validation_window=window,
+        starts=np.asarray(study.starts[:-1], dtype=int),
+    )
+    engine = output_error_engine(rest, features, substeps)
+    a, e = fits["assumed"], fits["extended"]
+    refit_a = engine.fit((), a.theta, a.x[keep])
+    refit_e = engine.fit(e.slots, e.theta, e.x[keep]) if e.slots else refit_a
+    assumed_model = study.model_at(refit_a.physical)
+    models = {
+        "assumed": assumed_model,
+        "extended": build_extended(refit_e) if e.slots else assumed_model,
+    }
+    record = (study.y[last], study.t[last], None if u is None else u[last])
+    runs = validation_runs(rest, models, features, substeps, record)
+    source = (
+        f"the last record held out whole ({size} samples, t = "
+        f"{sig(study.t[last.start])} .. {sig(study.t[last.stop - 1])}; both models "
+        "refitted on the other records)"
+    )
+    return runs, source, window, refit_a.converged and refit_e.converged
 
 
 def hold_out(study, gain, fits, build_extended, features, substeps) -> None:

@@ -40,7 +40,7 @@ __all__ = ["discover", "run_study"]
 
 def discover(
     y,
-    t,
+    t=None,
     *,
     assumed_model=None,
     n_states=None,
@@ -70,11 +70,21 @@ def discover(
 
     Parameters
     ----------
-    y : array-like (n_samples, n_measured)
+    y : array-like (n_samples, n_measured), or a list of records
         Noisy measurements of the states listed in ``measured``; NaN marks a
-        missing sample.
-    t : array-like (n_samples,) or float
-        Strictly increasing sample times (or the time step).
+        missing sample. Several records (experiments) of one system: a list
+        of arrays (with ``t`` a list of time arrays and ``u`` a list of input
+        arrays or None), or a list of :class:`~pysindy_mme.Record` (then no
+        ``t`` / ``u``). Each record has its own initial state; all share the
+        grey-box parameters and the correction terms (the records are
+        concatenated with no dynamics link between one and the next: no
+        model error, no defect; each record's free run restarts from its own
+        fitted initial state, and the RMSEs are pooled over the records).
+        Without ``validation`` the last record is held out whole to measure
+        the gain out of sample.
+    t : array-like (n_samples,) or float, or a list of them
+        Strictly increasing sample times (or the time step); with several
+        records one per record, each starting anywhere.
     assumed_model : callable, pysindy model or ExtendedModel
         The user's simulation model ``f(x, t)`` or ``f(x, t, u)``, vectorised.
     n_states : int
@@ -94,10 +104,13 @@ def discover(
         and ``u0, ...``).
     u : array-like (n_samples, n_inputs), optional
         Known inputs on the sample grid.
-    validation : tuple (y, t) or (y, t, u), optional
+    validation : tuple (y, t) or (y, t, u), Record, or a list of them, optional
         Another record, used only to measure the gain out of sample: each
         model's initial state is estimated from its first
-        ``validation_window`` samples, then the model runs free.
+        ``validation_window`` samples, then the model runs free. With a
+        list, each record gets that protocol and the RMSEs are pooled over
+        the records (each record's own runs: ``gain.validation_runs[name].
+        records``).
     W : "auto", "ml" or positive number, default "auto"
         MME weight (see :class:`MME`).
     error_model : {"white", "random_walk"}, default "white"
