@@ -20,6 +20,21 @@ Sections:
   solution of the ``sign`` model), the library with exact kinks
   (``smoothing=0``), plus rows with the library's default smoothing where it
   has one. ``--quick``: 5,000 samples.
+* ``viscous_split`` - issue 19 (1c): ``discover`` on the
+  :func:`~pysindy_mme.machines.asymmetric_damper` (damping 1.2 N s/m moving
+  up, 0.6 moving down; multisine force held per sample; position at 100 Hz,
+  noise 0.1 mm) with ``PhysicsLibrary([ViscousSplit("v"), Coulomb("v")])``;
+  the assumed model's one damper ``c`` a grey-box parameter or fixed at
+  0.9. Per seed: terms kept, the implied ``c_up = c - m a+`` and ``c_down =
+  c - m a-`` against the truth, conclusion, time; and the count of seeds
+  right (both within 5 %, no Coulomb, "explained"). ``--quick``: 3 seeds.
+* ``friction_lookalikes`` - issue 19 (1d): the Coulomb-friction cases that
+  offered a ``sign`` of every column (the adversarial oscillator, ``x2' =
+  -x1 - 0.05 sign(x2)``, with ``1, x1, x2``; the positioning axis, grey-box
+  ``M, c``, with a constant), with that ``CustomLibrary`` ("sign of all")
+  and with ``PhysicsLibrary`` on the velocity only ("Coulomb(v)"). Per
+  seed: terms kept, the Coulomb coefficient against the truth, look-alikes
+  kept, conclusion, time; and the counts. ``--quick``: 2 seeds.
 """
 
 from __future__ import annotations
@@ -32,10 +47,12 @@ import time
 import warnings
 
 import numpy as np
+import pysindy as ps
 
-from pysindy_mme import DivergenceError, ExtendedModel, PhysicsLibrary
-from pysindy_mme.feature_library import Coulomb
-from pysindy_mme.machines import positioning_axis
+from pysindy_mme import DivergenceError, ExtendedModel, PhysicsLibrary, discover
+from pysindy_mme.core.model import simulate_model
+from pysindy_mme.feature_library import Coulomb, ViscousSplit
+from pysindy_mme.machines import asymmetric_damper, positioning_axis
 
 
 def _table(header, rows):
@@ -154,7 +171,249 @@ def simulate_sign(args):
     )
 
 
-SECTIONS = {"simulate_sign": simulate_sign}
+# ---------------------------------------------------------------------------
+# viscous_split
+
+
+def _quiet_discover(y, t, **options):
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = discover(y, t, **options)
+    return res, time.perf_counter() - start
+
+
+def _terms_text(res):
+    kept = [
+        f"{name} in {state}' = {value:+.4g}"
+        for state, terms in res.terms.items()
+        for name, value in terms.items()
+    ]
+    return ", ".join(kept) or "none"
+
+
+def viscous_split(args):
+    machine = asymmetric_damper()
+    p = machine.true_parameters
+    m, c_up, c_down = p["m"], p["c_up"], p["c_down"]
+    c_fixed = 0.5 * (c_up + c_down)
+    seeds = range(3 if args.quick else 10)
+    for grey_box in (True, False):
+        rows, right, times = [], 0, []
+        for seed in seeds:
+            rec = machine.record(seed)
+            lib = PhysicsLibrary(
+                [ViscousSplit("v"), Coulomb("v")], names=["q", "v", "u"]
+            )
+            options = dict(
+                u=rec.u,
+                n_states=2,
+                measured=[0],
+                noise_variance=float(rec.noise_sd[0]) ** 2,
+                error_states=[1],
+                feature_library=lib,
+                feature_names=["q", "v", "u"],
+                input_hold="zoh",
+            )
+            if grey_box:
+                options.update(
+                    assumed_model=machine.assumed_model, parameters=machine.parameters
+                )
+            else:
+                fixed = {"k": p["k"], "c": c_fixed}
+                options.update(
+                    assumed_model=lambda x, t, u, fixed=fixed: machine.assumed_model(
+                        x, t, u, fixed
+                    )
+                )
+            res, sec = _quiet_discover(rec.y, rec.t, **options)
+            times.append(sec)
+            terms = res.terms.get("v", {})
+            c = res.parameters["c"].value if grey_box else c_fixed
+            up = c - m * terms.get("v+", 0.0)
+            down = c - m * terms.get("v-", 0.0)
+            ok = (
+                res.conclusion == "explained"
+                and "sign(v)" not in terms
+                and bool({"v+", "v-"} & set(terms))
+                and set(res.terms) <= {"v"}
+                and set(terms) <= {"v+", "v-"}
+                and abs(up - c_up) <= 0.05 * c_up
+                and abs(down - c_down) <= 0.05 * c_down
+            )
+            right += ok
+            rows.append(
+                [
+                    str(seed),
+                    _terms_text(res),
+                    f"{c:.4g}" + ("" if grey_box else " (fixed)"),
+                    f"{up:.4g} ({100 * (up / c_up - 1):+.2f} %)",
+                    f"{down:.4g} ({100 * (down / c_down - 1):+.2f} %)",
+                    f"{up - down:.4g}",
+                    res.conclusion,
+                    f"{len(res.trade_offs)}",
+                    f"{sec:.1f}",
+                    "yes" if ok else "NO",
+                ]
+            )
+        label = "grey-box c (and k)" if grey_box else f"c fixed at {c_fixed:g}, k known"
+        print(
+            f"\n## Direction-dependent damper, {label} (c_up = {c_up:g}, c_down = "
+            f"{c_down:g} N s/m, m = {m:g} kg; 20 s at 100 Hz, noise 0.1 mm)\n"
+        )
+        _table(
+            [
+                "seed",
+                "terms kept",
+                "c",
+                "c_up (vs truth)",
+                "c_down (vs truth)",
+                "c_up - c_down",
+                "conclusion",
+                "trade-offs named",
+                "time (s)",
+                "right",
+            ],
+            rows,
+        )
+        print(
+            f"\nRight (c_up and c_down within 5 %, no Coulomb, 'explained'): "
+            f"{right}/{len(seeds)}; time per study {np.mean(times):.1f} s (max "
+            f"{np.max(times):.1f} s)."
+        )
+
+
+# ---------------------------------------------------------------------------
+# friction_lookalikes
+
+
+def _sign_of_all(bias):
+    return ps.CustomLibrary(
+        library_functions=[lambda s: np.sign(s)],
+        function_names=[lambda s: f"sign({s})"],
+        include_bias=bias,
+    )
+
+
+def _oscillator_case(seed, physics):
+    def truth(x, t):
+        return np.column_stack([x[:, 1], -x[:, 0] - 0.05 * np.sign(x[:, 1])])
+
+    def assumed(x, t):
+        return np.column_stack([x[:, 1], -x[:, 0]])
+
+    t = np.arange(0, 30.0 + 1e-9, 1 / 20.0)
+    x = simulate_model(truth, (1.0, 0.0), t, rtol=1e-10, atol=1e-12)
+    rng = np.random.default_rng(seed)
+    y = x[:, :1] + np.sqrt(1e-4) * rng.standard_normal((t.size, 1))
+    signs = (
+        PhysicsLibrary([Coulomb("x2")], names=["x1", "x2"])
+        if physics
+        else _sign_of_all(False)
+    )
+    lib = ps.GeneralizedLibrary([ps.PolynomialLibrary(degree=1), signs])
+    res, sec = _quiet_discover(
+        y,
+        t,
+        assumed_model=assumed,
+        n_states=2,
+        measured=[0],
+        noise_variance=1e-4,
+        error_states=[1],
+        feature_library=lib,
+        feature_names=["x1", "x2"],
+    )
+    return res, sec, ("x2", "sign(x2)", -0.05, 0.10, ())
+
+
+def _axis_case(seed, physics):
+    machine = positioning_axis()
+    rec = machine.record(seed, duration=5.0)
+    lib = (
+        PhysicsLibrary([Coulomb("v")], include_bias=True, names=["q", "v", "u"])
+        if physics
+        else _sign_of_all(True)
+    )
+    res, sec = _quiet_discover(
+        rec.y,
+        rec.t,
+        u=rec.u,
+        assumed_model=machine.assumed_model,
+        parameters=machine.parameters,
+        n_states=2,
+        measured=[0],
+        noise_variance=(1e-5) ** 2,
+        feature_library=lib,
+        feature_names=["q", "v", "u"],
+    )
+    return res, sec, ("v", "sign(v)", -20 / 95, 0.05, ("1",))
+
+
+def friction_lookalikes(args):
+    seeds = range(2 if args.quick else 5)
+    cases = [
+        ("oscillator x2' = -x1 - 0.05 sign(x2), 30 s at 20 Hz", _oscillator_case),
+        ("positioning axis, grey-box M and c, 5 s at 1 kHz", _axis_case),
+    ]
+    for title, case in cases:
+        rows, counts, times = [], {}, {}
+        for physics in (False, True):
+            label = "Coulomb(v)" if physics else "sign of all"
+            for seed in seeds:
+                res, sec, (state, name, truth, tol, allowed) = case(seed, physics)
+                times.setdefault(label, []).append(sec)
+                terms = res.terms.get(state, {})
+                coef = terms.get(name)
+                coef_ok = coef is not None and abs(coef - truth) <= tol * abs(truth)
+                lookalikes = {
+                    f"{k} in {s}'": v
+                    for s, ts in res.terms.items()
+                    for k, v in ts.items()
+                    if not (s == state and (k == name or k in allowed))
+                }
+                n_ok, n_clean = counts.get(label, (0, 0))
+                counts[label] = (n_ok + coef_ok, n_clean + (not lookalikes))
+                rows.append(
+                    [
+                        label,
+                        str(seed),
+                        _terms_text(res),
+                        "not kept"
+                        if coef is None
+                        else f"{coef:.4g} ({100 * (coef / truth - 1):+.2f} %)",
+                        ", ".join(f"{k} = {v:+.3g}" for k, v in lookalikes.items())
+                        or "none",
+                        res.conclusion,
+                        f"{sec:.1f}",
+                    ]
+                )
+        print(f"\n## Coulomb friction and look-alikes: {title}\n")
+        _table(
+            [
+                "library",
+                "seed",
+                "terms kept",
+                "Coulomb coef (vs truth)",
+                "look-alikes kept",
+                "conclusion",
+                "time (s)",
+            ],
+            rows,
+        )
+        n = len(seeds)
+        for label, (n_ok, n_clean) in counts.items():
+            print(
+                f"\n{label}: Coulomb coefficient right in {n_ok}/{n} seeds, no "
+                f"look-alike in {n_clean}/{n}; time per study "
+                f"{np.mean(times[label]):.1f} s."
+            )
+
+
+SECTIONS = {
+    "simulate_sign": simulate_sign,
+    "viscous_split": viscous_split,
+    "friction_lookalikes": friction_lookalikes,
+}
 
 
 def main(argv=None):

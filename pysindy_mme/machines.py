@@ -46,6 +46,7 @@ __all__ = [
     "cascaded_tanks",
     "damped_pendulum",
     "clipped_oscillator",
+    "asymmetric_damper",
 ]
 
 
@@ -907,6 +908,159 @@ def clipped_oscillator(
             rate=rate,
             noise_sd=noise_sd,
             ceiling=ceiling,
+            x0=tuple(x0),
+        ),
+        seed=seed,
+        recorder=recorder,
+        simulator=simulator,
+    )
+
+
+# ---------------------------------------------------------------------------
+# 5. mass-spring-damper with a direction-dependent damper
+
+
+def _reversal(t, x, *args):
+    return x[1]
+
+
+_reversal.terminal = True
+
+
+def _damper_interval(rhs, x, uk, dt):
+    """``x`` after ``dt`` under ``rhs`` with the input ``uk`` held: DOP853 at
+    ``rtol = atol = 1e-12``, restarted at each velocity reversal (the kink
+    of the damper force) so that no step straddles it."""
+    t0, x = 0.0, np.asarray(x, dtype=float)
+    for _ in range(100):  # reversals within one sample: a handful at most
+        events = _reversal if x[1] != 0.0 else None
+        sol = solve_ivp(
+            rhs,
+            (t0, dt),
+            x,
+            method="DOP853",
+            args=(uk,),
+            events=events,
+            rtol=1e-12,
+            atol=1e-12,
+        )
+        if not sol.success:  # pragma: no cover - a smooth linear flow
+            raise RuntimeError(sol.message)
+        x = sol.y[:, -1]
+        if sol.status != 1:  # reached dt
+            return x
+        t0 = float(sol.t[-1])
+        x = np.array([x[0], 0.0])  # on the switch: the next phase starts here
+        if dt - t0 <= 1e-15:
+            return x
+    raise RuntimeError("too many velocity reversals in one sample")  # pragma: no cover
+
+
+def asymmetric_damper(
+    *,
+    m: float = 1.0,
+    k: float = 40.0,
+    c_up: float = 1.2,
+    c_down: float = 0.6,
+    seed: int = 0,
+    duration: float = 20.0,
+    rate: float = 100.0,
+    noise_sd: float = 1e-4,
+    u_rms: float = 1.0,
+    band: tuple = (0.2, 5.0),
+    x0: tuple = (0.0, 0.0),
+) -> Machine:
+    """A mass on a spring with a damper that differs by direction.
+
+    Truth ``q' = v``, ``m v' = u - k q - c_up max(v, 0) - c_down min(v, 0)``:
+    a damper stiffer moving up (``v > 0``) than down, as a shock absorber
+    is stiffer in rebound than in compression. The assumed model has one
+    symmetric damper, ``m v' = u - k q - c v``, with ``p = {"k", "c"}``
+    (guesses 36 N/m and 0.8 N s/m) and ``m`` known. The input force ``u``
+    is a 15-tone multisine (``band`` Hz, random phases, rms ``u_rms``)
+    computed at each sample and held (zero-order hold); the position is
+    measured with white noise ``noise_sd``. The right-hand side is
+    continuous with a kink at ``v = 0``: each sample interval is integrated
+    by ``solve_ivp`` (DOP853, ``rtol = atol = 1e-12``), restarted at every
+    velocity reversal.
+
+    Parameters
+    ----------
+    m, k, c_up, c_down : float
+        Mass (kg), stiffness (N/m), damping for ``v > 0`` and ``v < 0``
+        (N s/m).
+    seed : int
+        Default seed of :meth:`Machine.record`.
+    duration, rate, noise_sd, u_rms, band, x0
+        Recording defaults (s, Hz, m, N, (Hz, Hz), (m, m/s)).
+
+    Returns
+    -------
+    Machine
+    """
+    if m <= 0 or k <= 0 or c_up < 0 or c_down < 0:
+        raise ValueError("need m, k > 0 and c_up, c_down >= 0")
+
+    def force(q, v, uu):
+        return uu - k * q - c_up * np.maximum(v, 0.0) - c_down * np.minimum(v, 0.0)
+
+    def true_model(x, t, u):
+        q, v = x[:, 0], x[:, 1]
+        return np.column_stack([v, force(q, v, _input_column(u, len(x))) / m])
+
+    def assumed_model(x, t, u, p):
+        q, v = x[:, 0], x[:, 1]
+        uu = _input_column(u, len(x))
+        return np.column_stack([v, (uu - p["k"] * q - p["c"] * v) / m])
+
+    def rhs(t, x, uk):
+        return [x[1], force(x[0], x[1], uk) / m]
+
+    def step(x, u, dt):
+        return _damper_interval(rhs, x, float(u[0]), dt)
+
+    def simulator(t, u, x0):
+        return _held(step, t, u, x0)
+
+    def recorder(seed, o):
+        rng = np.random.default_rng(seed)
+        t = _grid(o["duration"], o["rate"])
+        low, high = o["band"]
+        u = _multisine(rng, t, o["u_rms"], low, high)[:, None]
+        x = _held(step, t, u, np.asarray(o["x0"], dtype=float))
+        y = _sensor(x[:, [0]], rng, o["noise_sd"], None, None)
+        return MachineRecord(
+            t=t,
+            y=y,
+            u=u,
+            x=x,
+            measured=[0],
+            state_names=["q", "v"],
+            input_names=["u"],
+            noise_sd=np.array([float(o["noise_sd"])]),
+            quantisation_step=None,
+            clip=None,
+        )
+
+    return Machine(
+        name="asymmetric_damper",
+        description="Mass-spring-damper, damping differs by direction, multisine "
+        "force, position measured at 100 Hz",
+        state_names=["q", "v"],
+        input_names=["u"],
+        measured=[0],
+        true_model=true_model,
+        assumed_model=assumed_model,
+        parameters={"k": 36.0, "c": 0.8},
+        true_parameters={"m": m, "k": k, "c_up": c_up, "c_down": c_down},
+        missing=f"direction-dependent damping: -(c_up - c) max(v, 0)/m - (c_down - "
+        f"c) min(v, 0)/m in v' (c_up = {c_up:g}, c_down = {c_down:g} N s/m)",
+        options=dict(
+            duration=duration,
+            rate=rate,
+            noise_sd=noise_sd,
+            u_rms=u_rms,
+            band=tuple(band),
             x0=tuple(x0),
         ),
         seed=seed,

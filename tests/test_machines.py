@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 from pysindy_mme.machines import (
     Machine,
     MachineRecord,
+    asymmetric_damper,
     cascaded_tanks,
     clipped_oscillator,
     damped_pendulum,
@@ -349,7 +350,13 @@ def test_clipped_oscillator_reports_the_ceiling():
     assert np.all(y[rec.x[:, 0] > 1.6 + 6 * 0.05] == 1.6)
 
 
-ALL = [positioning_axis, cascaded_tanks, damped_pendulum, clipped_oscillator]
+ALL = [
+    positioning_axis,
+    cascaded_tanks,
+    damped_pendulum,
+    clipped_oscillator,
+    asymmetric_damper,
+]
 
 
 @pytest.mark.parametrize("build", ALL)
@@ -387,3 +394,84 @@ def test_split_halves():
 def test_unknown_record_option_is_refused():
     with pytest.raises(TypeError, match="unknown option"):
         damped_pendulum().record(durration=3.0)
+
+
+# --------------------------------------------------------------------------
+# asymmetric damper
+
+
+def _damper_rhs(t, x, u, c):
+    """``m = 1, k = 40``, one damping coefficient ``c`` (one direction)."""
+    return [x[1], u - 40.0 * x[0] - c * x[1]]
+
+
+def test_damper_matches_a_closed_form_while_moving_one_way():
+    """Constant force from rest: under-damped with ``c_up`` until the first
+    reversal, whose time is ``pi / omega_d``."""
+    machine = asymmetric_damper()
+    t = np.arange(60) * 1e-2
+    x = machine.simulate(t, np.full((t.size, 1), 2.0), (0.0, 0.0))
+    zeta_w, wd = 1.2 / 2, np.sqrt(40.0 - 0.6**2)
+    up = t < np.pi / wd
+    q = (
+        2.0
+        / 40.0
+        * (1 - np.exp(-zeta_w * t) * (np.cos(wd * t) + zeta_w / wd * np.sin(wd * t)))
+    )
+    np.testing.assert_allclose(x[up, 0], q[up], atol=1e-11)
+    assert np.all(x[up, 1][1:] > 0) and np.any(x[:, 1] < 0)
+
+
+def test_damper_reversals_match_an_event_driven_reference():
+    machine = asymmetric_damper()
+    rec = machine.record(3, duration=4.0)
+
+    def stop(t, x, u, c):
+        return x[1]
+
+    stop.terminal = True
+    ref = np.empty_like(rec.x)
+    ref[0] = rec.x[0]
+    for k in range(rec.t.size - 1):
+        t0, x = rec.t[k], ref[k]
+        while True:
+            c = (
+                1.2
+                if (x[1] > 0 or (x[1] == 0 and rec.u[k, 0] - 40 * x[0] > 0))
+                else 0.6
+            )
+            sol = solve_ivp(
+                _damper_rhs,
+                (t0, rec.t[k + 1]),
+                x,
+                args=(rec.u[k, 0], c),
+                events=stop if x[1] != 0 else None,
+                method="Radau",
+                **TIGHT,
+            )
+            if sol.status != 1:
+                ref[k + 1] = sol.y[:, -1]
+                break
+            t0, x = sol.t[-1], np.array([sol.y[0, -1], 0.0])
+    assert np.sum(np.diff(np.sign(rec.x[:, 1])) != 0) > 5  # it reverses
+    np.testing.assert_allclose(rec.x, ref, atol=1e-9)
+
+
+def test_damper_record_and_models():
+    machine = asymmetric_damper()
+    rec = machine.record(0)
+    assert rec.t.size == 2000 and rec.u.shape == (2000, 1)
+    assert np.std(rec.u) == pytest.approx(1.0, rel=0.05)
+    assert np.std(rec.y[:, 0] - rec.x[:, 0]) == pytest.approx(1e-4, rel=0.1)
+    assert machine.parameters == {"k": 36.0, "c": 0.8}
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(40, 2))
+    u = rng.normal(size=(40, 1))
+    gap = machine.true_model(x, 0.0, u) - machine.assumed_model(
+        x, 0.0, u, {"k": 40.0, "c": 0.9}
+    )
+    np.testing.assert_allclose(gap[:, 0], 0.0)
+    v = x[:, 1]
+    np.testing.assert_allclose(
+        gap[:, 1], -0.3 * np.maximum(v, 0) + 0.3 * np.minimum(v, 0)
+    )

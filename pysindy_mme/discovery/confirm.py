@@ -235,10 +235,13 @@ class _Search:
             self.slots + [slot], [*self.fit.coefficients, value], current
         )
         if not trial.ok or trial.cost >= self.fit.cost:
-            # the regression value may start in a poor basin; from 0 the new
-            # term starts as a small perturbation of the current model
+            # the regression value may start in a poor basin (a d(t) estimate
+            # that is poor where the model is non-smooth gives huge, opposed
+            # coefficients to look-alike terms); from 0 on the current fit's
+            # own trajectory the new term starts as a small perturbation of
+            # the current model, at a point that already follows it
             retry = self.refit(
-                self.slots + [slot], [*self.fit.coefficients, 0.0], current
+                self.slots + [slot], [*self.fit.coefficients, 0.0], self.fit
             )
             trial = retry if retry.cost < trial.cost else trial
         if not trial.ok:

@@ -96,6 +96,10 @@ class OutputErrorFit:
         1e-12; the solver leaves a parameter there only while the data push
         it outwards). Its standard error is NaN and the covariance of the
         others is computed with it held there.
+    joined : bool
+        The trajectory follows the model (every defect below 1e-6 of the
+        state's scale): a fit that is not joined is no model's trajectory,
+        and its cost is no model's cost.
     """
 
     slots: tuple
@@ -115,6 +119,7 @@ class OutputErrorFit:
     _engine: object = None
     _inflation: float | None = None
     at_bound: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    joined: bool = True
 
     def __post_init__(self):
         if self.at_bound.size != self.n_physical:
@@ -411,6 +416,7 @@ class OutputErrorModel:
             _state=(solver, res),
             _engine=self,
             at_bound=at_bound,
+            joined=bool(bounded),
         )
         return fit
 

@@ -348,6 +348,8 @@ def format_discovery(res) -> str:
     out += ["3. The extended model", "-" * 21]
     for name, eq in zip(res.state_names, res.extended_model.equations()):
         out.append(f"({name})' = {eq}")
+    if res.smoothing:
+        out.append(f"Kinks: {res.smoothing}.")
     out.append("")
     out += _gain(res)
     if res.warnings:

@@ -151,6 +151,10 @@ class Discovery:
     readings : ndarray
         The fitting record as the sensors reported it (``y`` has NaN at the
         censored readings).
+    smoothing : str
+        How the kinks of non-smooth kept terms were integrated, and the
+        check that their smoothing width does not change the result (empty
+        without such terms; a width that matters is a warning instead).
     warnings : list of str
     """
 
@@ -171,6 +175,7 @@ class Discovery:
     reasons: list = field(default_factory=list)
     advice: list = field(default_factory=list)
     trade_offs: list = field(default_factory=list)
+    smoothing: str = ""
 
     # ----------------------------------------------------- read off the steps
     t = property(lambda self: self.study.t)

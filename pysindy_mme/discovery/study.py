@@ -32,6 +32,7 @@ from .steps import (
     overshoots,
     rk4_substeps,
     set_aside_parameter_duplicates,
+    smoothing_check,
     step_size_check,
 )
 
@@ -209,7 +210,7 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     progress.stage(f"4. confirmed {len(confirmation.slots)} term(s)")
     extended_fit = confirmation.fit or assumed.fit
-    extended = _extended_model(study, proposals, extended_fit, estimate.x)
+    extended = _extended_model(study, proposals, extended_fit, estimate.x, substeps)
     fits = {"assumed": assumed.fit, "extended": extended_fit}
     models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
@@ -218,12 +219,14 @@ def run_study(study, progress: Progress) -> Discovery:
             study,
             gain,
             fits,
-            lambda fit: _extended_model(study, proposals, fit, estimate.x),
+            lambda fit: _extended_model(study, proposals, fit, estimate.x, substeps),
             proposals.evaluate,
             substeps,
         )
     progress.stage("5. gain measured")
-    notes = _notes(study, assumed, estimate, proposals, confirmation, gain, engine)
+    notes, smoothing = _notes(
+        study, assumed, estimate, proposals, confirmation, gain, engine
+    )
     terms, estimates = _terms(study, proposals, confirmation)
     names = _quantity_names(study, proposals, extended_fit)
     trade_offs = exact_trade_offs(
@@ -254,6 +257,7 @@ def run_study(study, progress: Progress) -> Discovery:
         reasons=list(conclusion.reasons),
         advice=list(conclusion.advice),
         trade_offs=trade_offs,
+        smoothing=smoothing,
     )
 
 
@@ -369,9 +373,11 @@ def _substeps(study, assumed, proposals, x_hat) -> int:
     return rk4_substeps(study, rhs_rows, x_hat, study.t)
 
 
-def _extended_model(study, proposals, fit, x_hat) -> ExtendedModel:
+def _extended_model(study, proposals, fit, x_hat, substeps) -> ExtendedModel:
     """The model as printed: the assumed model at ``fit``'s parameters plus
-    ``fit.slots`` with ``fit``'s coefficients."""
+    ``fit.slots`` with ``fit``'s coefficients; its fixed-step simulations
+    take the study's RK4 steps per sample, so that a user reproduces the
+    study's free runs."""
     n_lib = len(proposals.feature_names)
     coef = np.zeros((study.n_states, n_lib))
     intercept = np.zeros(study.n_states)
@@ -390,6 +396,7 @@ def _extended_model(study, proposals, fit, x_hat) -> ExtendedModel:
         intercept=intercept,
         assumed_equations=study.assumed_equations,
         z_reference=z_ref,
+        substeps=substeps,
     )
 
 
@@ -456,9 +463,12 @@ def _partial_f(proposals, study, state, column) -> float:
     return float("nan")
 
 
-def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> list:
-    """Everything the user must know about how far to trust the numbers."""
+def _notes(study, assumed, estimate, proposals, confirmation, gain, engine):
+    """Everything the user must know about how far to trust the numbers:
+    ``(notes, smoothing)``, the second the smoothing check's finding when
+    it found the width harmless (shown with the extended model)."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
+    shown = ""
     fit = confirmation.fit
     if fit is not None:
         names = list(study.parameter_names) + [
@@ -488,10 +498,28 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine) -> l
         check = step_size_check(engine, fit, names)
         if check:
             notes.append(check)
-        used = {c for _, c in confirmation.slots}
+        smoothing = smoothing_check(
+            engine, fit, proposals.library, proposals.name, names
+        )
+        if smoothing is not None:
+            if smoothing[0]:
+                shown = smoothing[1]
+            else:
+                notes.append(smoothing[1])
+        smoothed = (
+            set()
+            if smoothing is None
+            else {
+                c
+                for _, c in confirmation.slots
+                if c < len(proposals.library.widths_)
+                and proposals.library.widths_[c] > 0
+            }
+        )
+        used = {c for _, c in confirmation.slots} - smoothed
         for c in sorted(used & set(proposals.nonsmooth)):
             notes.append(f"{proposals.name(c)} is {proposals.nonsmooth[c]}")
-    return notes
+    return notes, shown
 
 
 def _effective(fit) -> str:

@@ -256,6 +256,7 @@ class PhysicsLibrary(BaseFeatureLibrary):
             (None, 0, 0) if e is None else (e, k, variables[i]) for i, e, k in columns
         ]
         self.widths_ = self._widths(x_full, n)
+        self._plans = {}  # evaluation plans of the previous fit are stale
         self.n_features_in_ = n
         self.n_output_features_ = len(columns)
         return self
@@ -332,9 +333,20 @@ class PhysicsLibrary(BaseFeatureLibrary):
         -------
         ndarray, shape (n_rows, len(indices))
         """
-        chosen = self._fitted_columns(indices)
-        widths = None if exact else self._chosen_widths(indices)
+        chosen, widths = self._plan(indices, exact)
         return self._values(chosen, self._rows(z), widths)
+
+    def _plan(self, indices, exact):
+        """The checked columns and widths for ``indices``, cached per fit:
+        integrators ask for the same few columns at every stage."""
+        cache = self.__dict__.setdefault("_plans", {})
+        key = (None if indices is None else tuple(int(i) for i in indices), exact)
+        plan = cache.get(key)
+        if plan is None:
+            chosen = self._fitted_columns(indices)
+            widths = None if exact else self._chosen_widths(indices)
+            plan = cache[key] = (chosen, widths)
+        return plan
 
     def _chosen_widths(self, indices):
         widths = self.__dict__.get("widths_")
@@ -364,8 +376,7 @@ class PhysicsLibrary(BaseFeatureLibrary):
         ndarray, shape (n_rows, len(indices), n_features_in_)
             Nonzero only in each column's own variable.
         """
-        chosen = self._fitted_columns(indices)
-        widths = None if exact else self._chosen_widths(indices)
+        chosen, widths = self._plan(indices, exact)
         z = self._rows(z)
         out = np.zeros((z.shape[0], len(chosen), z.shape[1]))
         for j, (effect, k, var) in enumerate(chosen):
