@@ -10,6 +10,7 @@ first evaluation of the model), so a bad argument never waits for a solver.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,7 +19,7 @@ from sklearn.base import clone
 from ..core import validation as val
 from ..core.integrate import HOLDS, InputSignal
 from ..core.libraries import fresh_library
-from ..core.noise import describe_noise
+from ..core.noise import describe_noise, estimate_noise_variance
 from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
 from .parameters import parameter_spec
@@ -687,7 +688,51 @@ def _noise_record(problem) -> dict:
                 "quantisation level"
                 for d in undetermined
             )
+    elif doubt is None:
+        doubt = _stated_noise_doubt(problem, variance)
     return {"noise_description": description, "noise_doubt": doubt}
+
+
+# A stated noise this many times the data's own estimate is not the sensor's:
+# the estimate can be a few times too small (coloured noise) or too large
+# (a rough signal), never two orders of magnitude too small for white noise.
+STATED_NOISE_FACTOR = 100.0
+
+
+def _stated_noise_doubt(problem, stated) -> str | None:
+    """A stated noise far above what the data show: every test is then blunt
+    (the misfit is counted in units of the stated noise) and the study can
+    keep too few terms, or none, where the data hold more."""
+    y, t = getattr(problem, "y", None), getattr(problem, "t", None)
+    if y is None or y.shape[0] < 64:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            estimate = np.atleast_1d(estimate_noise_variance(y, t, warn=False))
+    except (ValueError, ArithmeticError):
+        return None
+    high = [
+        k
+        for k in range(min(estimate.size, stated.size))
+        if estimate[k] > 0 and stated[k] > STATED_NOISE_FACTOR * estimate[k]
+    ]
+    if not high:
+        return None
+    return (
+        "the stated noise is far above what the data show: "
+        + "; ".join(
+            f"channel {k} stated sd {np.sqrt(stated[k]):.3g}, the data's own "
+            f"estimate {np.sqrt(estimate[k]):.3g} ({stated[k] / estimate[k]:.3g}x "
+            "the variance)"
+            for k in high
+        )
+        + (
+            "; every test counts the misfit in units of the stated noise, so terms "
+            "the data hold can go unseen: check the sensor's noise, or give "
+            'noise_variance="auto"'
+        )
+    )
 
 
 def _place_model_error(est, y, t, u, n_states, state_names) -> str:

@@ -346,8 +346,11 @@ def confirm_on_measurements(
     if not study.refit:
         fit = None
         if proposals.slots:
-            values = np.asarray(proposals.start_values)
-            fit = engine.fit_held(proposals.slots, values, estimate.x)
+            base = assumed.fit
+            theta = np.concatenate(
+                [base.physical, np.asarray(proposals.start_values), base.offsets]
+            )
+            fit = engine.fit_held(proposals.slots, theta, estimate.x)
         return Confirmation(list(proposals.slots) if fit else [], fit)
     confirmation = confirm_terms(
         engine,
@@ -362,7 +365,62 @@ def confirm_on_measurements(
         min_effect=study.min_effect,
     )
     confirmation.rejected[:0] = list(proposals.rejected)
+    drop_smoothing_artefacts(engine, confirmation, proposals.library, describe)
     return confirmation
+
+
+# A kept term whose coefficient changes by more than a fifth of itself
+# when the kinks are smoothed over half the width describes the smoothing,
+# not the plant (a term of the plant is set by the data, whatever the width
+# far below the data's scale).
+ARTEFACT_SHARE = 0.2
+
+
+def drop_smoothing_artefacts(engine, confirmation, library, describe) -> None:
+    """Remove kept terms that only compensate the smoothing of kinks.
+
+    The fit is repeated at half the smoothing width (:func:`_half_width_refit`);
+    a term whose coefficient moves by more than ARTEFACT_SHARE of itself and by more
+    than two standard errors is dropped, the rest refitted, and the reason
+    recorded in ``confirmation.rejected``. In place.
+    """
+    fit = confirmation.fit
+    if fit is None:
+        return
+    half = _half_width_refit(engine, fit, library)
+    if half is None or not half[0].ok:
+        return
+    check = half[0]
+    a, k = fit.n_physical, len(fit.slots)
+    before, after = fit.coefficients, check.theta[a : a + k]
+    se = fit.std_errors[a : a + k]
+    with np.errstate(invalid="ignore"):
+        moved = (np.abs(after - before) > ARTEFACT_SHARE * np.abs(before)) & (
+            np.abs(after - before) > 2.0 * np.where(np.isfinite(se), se, 0.0)
+        )
+    if not np.any(moved):
+        return
+    keep = [j for j in range(k) if not moved[j]]
+    slots = [fit.slots[j] for j in keep]
+    for j in np.flatnonzero(moved):
+        confirmation.rejected.append(
+            (
+                fit.slots[j],
+                f"its coefficient depends on the smoothing of the kinks "
+                f"({sig(before[j])} -> {sig(after[j])} at half the width): it "
+                "compensates the integration of a kink, not an effect of the plant",
+            )
+        )
+        confirmation.log.append(
+            f"removed {describe(fit.slots[j])}: depends on the kinks' smoothing"
+        )
+    if not slots:
+        confirmation.slots, confirmation.fit = [], None
+        return
+    theta = np.concatenate([fit.physical, before[keep], fit.offsets])
+    refit = engine.fit(slots, theta, fit.x)
+    if refit.ok:
+        confirmation.slots, confirmation.fit = slots, refit
 
 
 def step_size_check(
@@ -414,23 +472,12 @@ def smoothing_check(engine, fit, library, describe, names=None):
     by more than half its standard error. None when no kept term is a
     smoothed kink. ``describe(column) -> name``.
     """
-    widths = getattr(library, "widths_", None)
-    if widths is None:
+    half = _half_width_refit(engine, fit, library)
+    if half is None:
         return None
-    widths = np.asarray(widths, dtype=float)
-    columns = sorted({c for _, c in fit.slots if c < widths.size and widths[c] > 0})
-    if not columns:
-        return None
+    check, columns = half
+    widths = library.widths_
     what = ", ".join(f"{describe(c)} over {sig(widths[c], 2)}" for c in columns)
-    saved = widths.copy()
-    try:
-        library.widths_ = 0.5 * saved
-        library._plans = {}  # its cached evaluation plans hold the widths
-        finer = engine.with_substeps(2 * engine.n_substeps)
-        check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=20)
-    finally:
-        library.widths_ = saved
-        library._plans = {}
     if not check.ok:
         return False, (
             f"kinks integrated smoothed ({what}): the model cannot be fitted at "
@@ -452,6 +499,31 @@ def smoothing_check(engine, fit, library, describe, names=None):
         "at half the width and twice the RK4 steps, no coefficient or parameter "
         "moved by half a standard error: the width does not change the result"
     )
+
+
+def _half_width_refit(engine, fit, library):
+    """``(fit at half the smoothing width, smoothed columns)`` or None.
+
+    With the RK4 steps doubled: a narrower kink is a stiffer one. From the
+    fit's own trajectory and values; the library's widths are restored.
+    """
+    widths = getattr(library, "widths_", None)
+    if widths is None:
+        return None
+    widths = np.asarray(widths, dtype=float)
+    columns = sorted({c for _, c in fit.slots if c < widths.size and widths[c] > 0})
+    if not columns:
+        return None
+    saved = widths.copy()
+    try:
+        library.widths_ = 0.5 * saved
+        library._plans = {}  # its cached evaluation plans hold the widths
+        finer = engine.with_substeps(2 * engine.n_substeps)
+        check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=20)
+    finally:
+        library.widths_ = saved
+        library._plans = {}
+    return check, columns
 
 
 def _moved_most(before, after, se, names, shown=3) -> str:

@@ -1,0 +1,107 @@
+"""Acceptance case (a) of the physics issue: Coulomb friction on a real axis.
+
+A carriage on a screw axis under a PD position loop
+(:func:`pysindy_mme.machines.positioning_axis`): mass 95 kg, viscous
+friction 200 N s/m, Coulomb friction 20 N that sticks at rest, and a force
+offset of -3 N; the controller's voltage is held between samples; the
+position is read by an encoder with a 50 nm step at 1 kHz for 25 s. The
+user's grey box has the mass and the viscous friction only (guesses 90 kg,
+150 N s/m). The study is given the encoder's noise (its quantisation,
+``step^2 / 12``), a zero-order hold, the last fifth of the record for
+validation, and the library of friction laws an engineer would offer for
+the velocity: Coulomb ``sign(v)``, a Stribeck bump ``sign(v)
+exp(-(v/0.02)^2)`` and an offset.
+
+Criteria (fixed before the seeds were run): Coulomb within 3 % of
+``-Fc/M``, the offset within 10 % of ``F0/M``, the mass within 5 %, and no
+other term, in at least 9 of 10 seeds (0..9). The Stribeck term is the
+tempting one: the plant sticks, which the smoothed ``sign`` cannot do, and
+a small Stribeck bump would absorb part of that; the study drops it because
+its coefficient depends on the smoothing width.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme.feature_library import Coulomb, Stribeck
+from pysindy_mme.machines import positioning_axis
+
+FC, F0, MASS = 20.0, -3.0, 95.0
+AXIS = positioning_axis(F0=F0)
+NAMES = ["q", "v", "u"]
+
+
+def axis_study(seed, duration=25.0):
+    rec = AXIS.record(seed, duration=duration)
+    train, test = rec.split(0.8)
+    library = PhysicsLibrary(
+        [Coulomb("v"), Stribeck("v", 0.02)], include_bias=True, names=NAMES
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return discover(
+            train.y,
+            train.t,
+            u=train.u,
+            assumed_model=AXIS.assumed_model,
+            parameters=AXIS.parameters,
+            n_states=2,
+            measured=[0],
+            noise_variance=rec.quantisation_step**2 / 12.0,
+            feature_library=library,
+            feature_names=NAMES,
+            error_states=[1],
+            input_hold="zoh",
+            validation=(test.y, test.t, test.u),
+        )
+
+
+def axis_failures(res) -> list:
+    """What is wrong with a study's answer (empty: right)."""
+    terms = res.terms.get("v", {})
+    mass = res.parameters["M"].value
+    out = []
+    if "sign(v)" not in terms:
+        return [f"no Coulomb friction kept: {res.terms} ({res.conclusion})"]
+    coulomb = -terms["sign(v)"] * mass
+    offset = terms.get("1", np.nan) * mass
+    if not coulomb == pytest.approx(FC, rel=0.03):
+        out.append(f"Coulomb {coulomb:.4g} N, truth {FC:g}")
+    if not offset == pytest.approx(F0, rel=0.10):
+        out.append(f"offset {offset:.4g} N, truth {F0:g}")
+    if not mass == pytest.approx(MASS, rel=0.05):
+        out.append(f"mass {mass:.4g} kg, truth {MASS:g}")
+    others = sorted(set(terms) - {"sign(v)", "1"}) + sorted(set(res.terms) - {"v"})
+    if others:
+        out.append(f"other terms kept: {others}")
+    return out
+
+
+@pytest.mark.slow
+def test_axis_coulomb_and_offset_over_ten_seeds():
+    failures = {}
+    for seed in range(10):
+        problems = axis_failures(axis_study(seed))
+        if problems:
+            failures[seed] = problems
+    print(f"\nright in {10 - len(failures)}/10 seeds; {failures}")
+    assert len(failures) <= 1, failures
+
+
+def test_axis_short_record_names_friction_and_the_smoothing():
+    # 10 s of the same axis: the answer is right; the report says how the
+    # kink was integrated and what half the width does (with a 50 nm encoder
+    # even a 0.1 % move of the Coulomb term is many standard errors, and it
+    # says so); and since a smoothed sign cannot stick, the extended model
+    # misses the record by far more than the encoder's noise: "partly
+    # explained", never "explained"
+    res = axis_study(0, duration=10.0)
+    assert axis_failures(res) == []
+    assert "kinks integrated smoothed (sign(v) over" in str(res)
+    assert res.conclusion == "partly explained"
+    assert any("misses its record" in reason for reason in res.reasons)
