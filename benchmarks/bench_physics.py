@@ -11,6 +11,14 @@ write ``def my_section(args)`` printing a table, and register it in
 
 Sections:
 
+* ``axis`` - issue 19 (1a): ``discover`` on the
+  :func:`~pysindy_mme.machines.positioning_axis` with Coulomb friction 20 N
+  and an offset of -3 N missing from the mass/viscous grey box (25 s at
+  1 kHz, 50 nm encoder, the last fifth as the validation record), library
+  ``PhysicsLibrary([Coulomb("v"), Stribeck("v", 0.02)], include_bias=True)``.
+  Per seed: Coulomb and offset in newtons against the truth, mass, damping,
+  other terms kept, conclusion, time; the count right (the criteria of
+  ``tests/discovery/test_physics_axis.py``). ``--quick``: 3 seeds, 10 s.
 * ``simulate_sign`` - ``ExtendedModel.simulate`` with Coulomb friction
   ``sign(v)`` on a 25,000-sample record of the positioning axis (1 kHz,
   input held between samples): LSODA at ``rtol = 1e-9`` within a budget of
@@ -35,6 +43,23 @@ Sections:
   and with ``PhysicsLibrary`` on the velocity only ("Coulomb(v)"). Per
   seed: terms kept, the Coulomb coefficient against the truth, look-alikes
   kept, conclusion, time; and the counts. ``--quick``: 2 seeds.
+* ``tanks`` - issue 19 (1b): ``discover`` on the
+  :func:`~pysindy_mme.machines.cascaded_tanks` (Torricelli outflows, the
+  upper tank overflowing at 10 V, only ``h2`` measured by a clipping 12-bit
+  sensor, 4096 s at 0.25 Hz) with the LINEAR assumed model (grey-box ``a1,
+  b, a2, a3``) and ``PhysicsLibrary([Torricelli("h1"), Torricelli("h2"),
+  Overflow("h1", [6, 8, 10, 12, 14])])`` in both equations; pump held
+  (``input_hold="zoh"``), noise variance from the sensor (0.02^2 plus the
+  ADC's step^2/12), clipping censored by the default ``clipped="auto"``,
+  the record of seed ``1000 + s`` as the test record. Per seed: terms kept,
+  the scale-free products ``c11 c21`` (truth ``-k1^2``) and ``c22`` (truth
+  ``-k2`` when the linear ``a3`` absorbs nothing), conclusion, test-record
+  free-run RMSE of the extended, the true (from the true initial state) and
+  the assumed model, time; and the counts of seeds with the square-root law
+  in both equations (signs right), saturation named (an ``over`` term or a
+  "may saturate" line), and the test RMSE within 1.5x the true model's
+  (the criteria of ``tests/discovery/test_physics_tanks.py``).
+  ``--quick``: 3 seeds.
 """
 
 from __future__ import annotations
@@ -51,8 +76,14 @@ import pysindy as ps
 
 from pysindy_mme import DivergenceError, ExtendedModel, PhysicsLibrary, discover
 from pysindy_mme.core.model import simulate_model
-from pysindy_mme.feature_library import Coulomb, ViscousSplit
-from pysindy_mme.machines import asymmetric_damper, positioning_axis
+from pysindy_mme.feature_library import (
+    Coulomb,
+    Overflow,
+    Stribeck,
+    Torricelli,
+    ViscousSplit,
+)
+from pysindy_mme.machines import asymmetric_damper, cascaded_tanks, positioning_axis
 
 
 def _table(header, rows):
@@ -409,10 +440,234 @@ def friction_lookalikes(args):
             )
 
 
+# ---------------------------------------------------------------------------
+# tanks
+
+
+def _tanks_row(machine, seed):
+    """One study of the linear-model tanks; returns the row's numbers."""
+    rec = machine.record(seed)
+    test = machine.record(1000 + seed)
+    step = rec.quantisation_step or 0.0
+    lib = PhysicsLibrary(
+        [Torricelli("h1"), Torricelli("h2"), Overflow("h1", [6, 8, 10, 12, 14])],
+        include_bias=False,
+        names=["h1", "h2", "u"],
+    )
+    res, sec = _quiet_discover(
+        rec.y,
+        rec.t,
+        u=rec.u,
+        assumed_model=machine.assumed_model,
+        parameters=machine.parameters,
+        n_states=2,
+        measured=[1],
+        noise_variance=float(rec.noise_sd[0]) ** 2 + step**2 / 12.0,
+        error_states=[0, 1],
+        feature_library=lib,
+        feature_names=["h1", "h2", "u"],
+        input_hold="zoh",
+        validation=(test.y, test.t, test.u),
+    )
+    # the true model's free run on the samples of the study's validation RMSE
+    y_v = res.study.validation[0]
+    lead, trail = res.study.validation_clipped_cut
+    window = res.gain.validation_runs["extended"].window
+    x_true = machine.simulate(test.t, test.u, test.x[0])[lead : test.t.size - trail]
+    y = y_v[window:, 0]
+    seen = np.isfinite(y)
+    true = float(np.sqrt(np.mean((y[seen] - x_true[window:, 1][seen]) ** 2)))
+    ext = float(res.gain.validation_rmse_extended[0])
+    ass = float(res.gain.validation_rmse_assumed[0])
+    h1, h2 = res.terms.get("h1", {}), res.terms.get("h2", {})
+    law = (
+        h1.get("sqrt(h1+)", 0.0) < 0
+        and h2.get("sqrt(h1+)", 0.0) > 0
+        and h2.get("sqrt(h2+)", 0.0) < 0
+    )
+    over = any(k.startswith("over(h1") for terms in (h1, h2) for k in terms)
+    saturation = over or "may saturate" in str(res)
+    clipped = next(
+        (
+            line[len("Clipped: ") :]
+            for line in str(res).splitlines()
+            if line.startswith("Clipped: h2")
+        ),
+        "none",
+    )
+    return dict(
+        res=res,
+        sec=sec,
+        law=law,
+        saturation=saturation,
+        over=over,
+        rmse_ok=ext <= 1.5 * true,
+        ext=ext,
+        true=true,
+        ass=ass,
+        c11c21=h1.get("sqrt(h1+)", np.nan) * h2.get("sqrt(h1+)", np.nan),
+        c22=h2.get("sqrt(h2+)", np.nan),
+        clipped=clipped,
+    )
+
+
+def tanks(args):
+    machine = cascaded_tanks(assumed="linear")
+    p = machine.true_parameters
+    seeds = range(3 if args.quick else 10)
+    rows, runs = [], []
+    for seed in seeds:
+        r = _tanks_row(machine, seed)
+        runs.append(r)
+        res = r["res"]
+        params = ", ".join(f"{k} {v.value:.3g}" for k, v in res.parameters.items())
+        rows.append(
+            [
+                str(seed),
+                _terms_text(res),
+                params,
+                f"{r['c11c21']:.3g}",
+                f"{r['c22']:.3g}",
+                res.conclusion,
+                f"{r['ext']:.4g}",
+                f"{r['true']:.4g}",
+                f"{r['ass']:.4g}",
+                f"{r['ext'] / r['true']:.2f}",
+                f"{r['sec']:.1f}",
+                "".join(
+                    mark
+                    for mark, ok in (
+                        ("L", r["law"]),
+                        ("S", r["saturation"]),
+                        ("R", r["rmse_ok"]),
+                    )
+                    if ok
+                )
+                or "-",
+            ]
+        )
+    print(
+        f"\n## Cascaded tanks, linear assumed model (k1 = {p['k1']:g}, k2 = "
+        f"{p['k2']:g}, kp = {p['kp']:g}, rim {p['h_max']:g} V; 4096 s at 0.25 Hz, "
+        f"h2 measured, noise 0.02 V, 12-bit, clipped at 0 and 10 V)\n"
+    )
+    _table(
+        [
+            "seed",
+            "terms kept",
+            "parameters",
+            f"c11 c21 (-k1^2 = {-(p['k1'] ** 2):.3g})",
+            f"c22 (-k2 = {-p['k2']:.3g})",
+            "conclusion",
+            "test RMSE extended",
+            "true",
+            "assumed",
+            "ext/true",
+            "time (s)",
+            "right (L S R)",
+        ],
+        rows,
+    )
+    n = len(seeds)
+    times = [r["sec"] for r in runs]
+    print(
+        f"\nSquare-root law in both equations, signs right (L): "
+        f"{sum(r['law'] for r in runs)}/{n}; saturation named (S): "
+        f"{sum(r['saturation'] for r in runs)}/{n} (an overflow term kept in "
+        f"{sum(r['over'] for r in runs)}); test RMSE within 1.5x the true "
+        f"model's (R): {sum(r['rmse_ok'] for r in runs)}/{n}. Time per study "
+        f"{np.mean(times):.1f} s (max {np.max(times):.1f} s). Clipped line "
+        f"(seed {seeds[0]}): {runs[0]['clipped']}"
+    )
+
+
+def axis(args):
+    """Issue 19 (1a): Coulomb friction and an offset on the PD-controlled axis."""
+    fc, f0, mass = 20.0, -3.0, 95.0
+    machine = positioning_axis(F0=f0)
+    names = ["q", "v", "u"]
+    seeds = range(3 if args.quick else 10)
+    duration = 10.0 if args.quick else 25.0
+    rows, right, times = [], 0, []
+    for seed in seeds:
+        rec = machine.record(seed, duration=duration)
+        train, test = rec.split(0.8)
+        lib = PhysicsLibrary(
+            [Coulomb("v"), Stribeck("v", 0.02)], include_bias=True, names=names
+        )
+        res, sec = _quiet_discover(
+            train.y,
+            train.t,
+            u=train.u,
+            assumed_model=machine.assumed_model,
+            parameters=machine.parameters,
+            n_states=2,
+            measured=[0],
+            noise_variance=rec.quantisation_step**2 / 12.0,
+            feature_library=lib,
+            feature_names=names,
+            error_states=[1],
+            input_hold="zoh",
+            validation=(test.y, test.t, test.u),
+        )
+        times.append(sec)
+        terms = res.terms.get("v", {})
+        m = res.parameters["M"].value
+        coulomb = -terms.get("sign(v)", np.nan) * m
+        offset = terms.get("1", np.nan) * m
+        others = sorted(set(terms) - {"sign(v)", "1"})
+        ok = (
+            abs(coulomb / fc - 1) <= 0.03
+            and abs(offset / f0 - 1) <= 0.10
+            and abs(m / mass - 1) <= 0.05
+            and not others
+            and set(res.terms) <= {"v"}
+        )
+        right += ok
+        rows.append(
+            [
+                str(seed),
+                f"{coulomb:.3f} ({100 * (coulomb / fc - 1):+.2f} %)",
+                f"{offset:.3f} ({100 * (offset / f0 - 1):+.1f} %)",
+                f"{m:.2f}",
+                f"{res.parameters['c'].value:.1f}",
+                ", ".join(others) or "none",
+                res.conclusion,
+                f"{sec:.1f}",
+                "yes" if ok else "NO",
+            ]
+        )
+    print(
+        f"\n## Positioning axis: Coulomb {fc:g} N and offset {f0:g} N missing from "
+        f"a mass/viscous grey box ({duration:g} s at 1 kHz, 50 nm encoder, last "
+        "fifth for validation)\n"
+    )
+    _table(
+        [
+            "seed",
+            "Coulomb (N)",
+            "offset (N)",
+            "M (kg)",
+            "c (N s/m)",
+            "other terms",
+            "conclusion",
+            "time (s)",
+            "right",
+        ],
+        rows,
+    )
+    print(
+        f"\nRight (Coulomb within 3 %, offset within 10 %, mass within 5 %, no other "
+        f"term): {right}/{len(rows)}; median time per study {np.median(times):.1f} s."
+    )
+
+
 SECTIONS = {
+    "axis": axis,
     "simulate_sign": simulate_sign,
     "viscous_split": viscous_split,
     "friction_lookalikes": friction_lookalikes,
+    "tanks": tanks,
 }
 
 

@@ -158,6 +158,21 @@ def _describe(res) -> str:
     return f"terms {res.terms}; {res.conclusion}; {res.reasons}"
 
 
+# Not met yet (issue 19, case 1b), measured on seeds 0..9 with the criteria
+# fixed before the runs: the law 0/10, saturation named 3/10, test RMSE
+# within 1.5x the true model's 0/10. Causes, in the order they bite: the
+# assumed model's fit drifts along the exact b*a2 trade-off (the hidden
+# level's scale) because no gauge is fixed before fitting; a fit at the edge
+# of RK4's stability wins on transcription cost; and a library column
+# max(h1 - L, 0) cannot hold h1 at the rim and route the excess to h2 (an
+# overflow needs a clamp with a destination). Strict: a pass is news.
+TANKS_NOT_MET = pytest.mark.xfail(
+    strict=True,
+    reason="linear-model tanks: scale gauge, RK4-edge fits and overflow routing "
+    "not solved yet (issue 19, case 1b)",
+)
+
+
 @pytest.fixture(scope="module")
 def seed0():
     return tanks_study(0)
@@ -176,6 +191,7 @@ def test_report_names_the_clipping_seed0(seed0):
     assert ceiling.count == int(np.sum(MACHINE.record(0).y >= 10.0))
 
 
+@TANKS_NOT_MET
 def test_tanks_seed0(seed0):
     res, test, sec = seed0
     failures = tanks_failures(res, test)
@@ -184,6 +200,7 @@ def test_tanks_seed0(seed0):
 
 
 @pytest.mark.slow
+@TANKS_NOT_MET
 def test_tanks_over_ten_seeds():
     failed = {"law": [], "saturation": [], "rmse": []}
     details = {}
@@ -195,6 +212,8 @@ def test_tanks_over_ten_seeds():
         if failures:
             details[seed] = failures
     counts = {k: len(SEEDS) - len(v) for k, v in failed.items()}
-    print(f"\ncascaded tanks (linear assumed): right per requirement {counts} of "
-          f"{len(SEEDS)}; {details}")
+    print(
+        f"\ncascaded tanks (linear assumed): right per requirement {counts} of "
+        f"{len(SEEDS)}; {details}"
+    )
     assert all(n >= NEEDED for n in counts.values()), details
