@@ -518,7 +518,12 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine):
         )
         used = {c for _, c in confirmation.slots} - smoothed
         for c in sorted(used & set(proposals.nonsmooth)):
-            notes.append(f"{proposals.name(c)} is {proposals.nonsmooth[c]}")
+            notes.append(
+                f"{proposals.name(c)} is {proposals.nonsmooth[c]}; the integrators "
+                "take it as it is (fits through a jump may stall): PhysicsLibrary's "
+                "effects (Coulomb, Saturation, Overflow, ...) integrate their kinks "
+                "smoothed and check that the width does not matter"
+            )
     return notes, shown
 
 
