@@ -460,7 +460,8 @@ class MMESmoother(GaussNewton):
                 f"x = {x_k.tolist()}): integrating it there gives "
                 f"{phi_k.tolist()}. The model is unstable or stiff at this "
                 "sampling rate; check the model and the units of the data, or "
-                "increase n_substeps."
+                "increase n_substeps (MME(n_substeps=...); in discover, "
+                "mme=MME(..., n_substeps=...), with or without parameters=)."
             )
 
     def linearize(self, x, d, theta=None) -> Linearization:
@@ -489,7 +490,8 @@ class MMESmoother(GaussNewton):
                 f"{(x[k] * self.unit).tolist()}): it is unstable or stiff at "
                 "this sampling rate, at least near the estimated trajectory. "
                 "Check the model and the units of the data, or increase "
-                "n_substeps."
+                "n_substeps (MME(n_substeps=...); in discover, "
+                "mme=MME(..., n_substeps=...), with or without parameters=)."
             )
         r = self.residuals(x, theta)
         H = self.measurement_jacobian(x)

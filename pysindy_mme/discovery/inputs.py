@@ -275,6 +275,18 @@ def _estimator(mme, given: dict, u, input_hold, parameters: dict):
         est = clone(mme)
         if u is not None:
             est.set_params(u=u)
+        if parameters:
+            # a grey box with the user's own MME configuration (n_substeps,
+            # W, error_model ...): its model is f(x, t, u, p)
+            raw = mme.assumed_model
+            if not callable(raw) or hasattr(raw, "predict"):
+                raise TypeError(
+                    "with parameters, the MME's assumed_model must be a callable "
+                    "f(x, t, u, p)"
+                )
+            est.set_params(
+                assumed_model=AtParameters(raw, parameters, parameters.values())
+            )
         return est
     for name in ("assumed_model", "n_states", "noise_variance"):
         if given[name] is None:
@@ -856,10 +868,6 @@ def check_study(
         u = None if u is None else u[rows]
         clipping = clipping.rows(rows)
     params, bounds = _parameters(parameters)
-    if params and mme is not None:
-        raise ValueError(
-            "parameters need assumed_model=f(x, t, u, p) given to discover, not mme="
-        )
     est = _estimator(mme, mme_keywords, u, input_hold, params)
     if cut != (0, 0) and u is None and est.u is not None and not callable(est.u):
         est.set_params(u=np.asarray(est.u, dtype=float).reshape(n_samples, -1)[rows])
@@ -925,7 +933,11 @@ def check_study(
         else list(assumed_equations),
         x_init=problem.smoother.initial_guess()[0][:, : int(n_states)],
         validation_window=int(window),
-        raw_model=mme_keywords["assumed_model"] if params else None,
+        raw_model=(
+            (mme.assumed_model if mme is not None else mme_keywords["assumed_model"])
+            if params
+            else None
+        ),
         parameter_names=list(params),
         parameter_init=np.array(list(params.values()), dtype=float),
         offsets=bool(offsets),

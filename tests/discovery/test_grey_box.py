@@ -99,3 +99,47 @@ def test_bad_parameters_are_rejected_up_front():
             measured=[0],
             noise_variance=NOISE,
         )
+
+
+def test_grey_box_with_an_explicit_mme_configuration():
+    # issue 23: parameters= together with mme=MME(...) (its own n_substeps):
+    # the same answer as the keyword route, and the substeps reach the fits
+    from pysindy_mme import MME
+
+    data = duffing().measure(0, noise_variance=NOISE)
+    mme = MME(
+        assumed_model=linear_oscillator,
+        n_states=2,
+        measured=[0],
+        noise_variance=NOISE,
+        error_states=[1],
+        n_substeps=3,
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = discover(
+            data.y,
+            data.t,
+            mme=mme,
+            parameters={"k": 0.7, "c": 0.13},
+            feature_library=ps.PolynomialLibrary(degree=3),
+            feature_names=["x1", "x2"],
+        )
+    keywords = _study(data)
+    assert res.substeps >= 3
+    assert set(res.terms["x2"]) == {"x1^3"} == set(keywords.terms["x2"])
+    for name in ("k", "c"):
+        got, ref = res.parameters[name], keywords.parameters[name]
+        assert abs(got.value - ref.value) <= 2 * ref.std_error
+    # the user's estimator is not modified
+    assert mme.assumed_model is linear_oscillator
+
+
+def test_grey_box_mme_model_must_take_parameters():
+    from pysindy_mme import MME
+
+    data = duffing().measure(0, noise_variance=NOISE)
+    fitted = ps.SINDy().fit(np.column_stack([data.y[:, 0], data.y[:, 0]]), t=data.t)
+    mme = MME(assumed_model=fitted, n_states=2, measured=[0], noise_variance=NOISE)
+    with pytest.raises(TypeError, match="f\\(x, t, u, p\\)"):
+        discover(data.y, data.t, mme=mme, parameters={"k": 0.7})
