@@ -263,15 +263,43 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
         mme.set_params(assumed_model=study.assumed_at(assumed.fit.physical))
     if study.offsets and assumed.fit.ok:
         y = study.y - assumed.fit.offsets
-    if study.n_records > 1:
-        mme.fit(y, study.t, study.inputs.u, starts=study.starts)
-    else:
-        mme.fit(y, study.t, study.inputs.u)
-    notes = (
-        []
-        if mme.converged_
-        else ["MME did not converge; the state estimate may be poor"]
-    )
+    notes = []
+    try:
+        _fit_mme(mme, study, y)
+    except DivergenceError as exc:
+        # Stiff near the fitted trajectory (a Torricelli outflow near an
+        # empty tank) at MME's own steps, where step 1 already needed more:
+        # MME again with step 1's RK4 steps per interval.
+        why = str(exc).split(":")[0]
+        if assumed.substeps > mme.n_substeps:
+            mme.set_params(n_substeps=int(assumed.substeps))
+            try:
+                _fit_mme(mme, study, y)
+                notes.append(
+                    f"MME needed {assumed.substeps} RK4 steps per sample interval "
+                    f"(as the assumed model's fit did): at its own "
+                    f"{study.mme.n_substeps} it failed ({why})"
+                )
+                why = None
+            except DivergenceError:
+                pass
+        if why is not None:
+            if not study.n_parameters:
+                raise
+            # The fitted parameters make the model too stiff for MME near
+            # its estimate (a square-root outflow at an empty tank): the
+            # model error is estimated at the user's guesses instead; the
+            # confirmation refits the parameters with the terms anyway.
+            mme = clone(study.mme)
+            mme.set_params(assumed_model=study.assumed_at(study.parameter_init))
+            _fit_mme(mme, study, y)
+            notes.append(
+                "MME could not integrate the assumed model at its fitted "
+                f"parameters near the estimated states ({why}); d(t) was "
+                "estimated at the guessed parameters instead"
+            )
+    if not mme.converged_:
+        notes.append("MME did not converge; the state estimate may be poor")
     x_hat = np.asarray(mme.smoothed_x_)
     d_hat = np.asarray(mme.d_)
     f_hat = study.model_at(assumed.fit.physical)(x_hat, study.t, study.u)
@@ -285,6 +313,13 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
             "share": rms_d / rms_total if rms_total > 0 else float("nan"),
         }
     return ErrorEstimate(mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes)
+
+
+def _fit_mme(mme, study, y):
+    if study.n_records > 1:
+        mme.fit(y, study.t, study.inputs.u, starts=study.starts)
+    else:
+        mme.fit(y, study.t, study.inputs.u)
 
 
 def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:
