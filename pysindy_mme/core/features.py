@@ -118,6 +118,9 @@ class SelectedFeatures:
                 self._own = _agrees(fast, slow)
         if self._own:
             self._factors = None
+            # a tuple of ints: the library's cache of evaluation plans hashes
+            # it directly (integrators call this at every stage)
+            self._all = tuple(int(i) for i in self.indices)
             return
         parsed = [_parse(n, self.variables) for n in self.names]
         self._factors = None if any(p is None for p in parsed) else parsed
@@ -194,9 +197,8 @@ class SelectedFeatures:
         if len(self.indices) == 0 or (subset is not None and len(subset) == 0):
             return np.zeros((z.shape[0], 0))
         if self._own:
-            return np.asarray(
-                self.library.evaluate(z, self._positions(subset)), dtype=float
-            )
+            columns = self._all if subset is None else self._positions(subset)
+            return np.asarray(self.library.evaluate(z, columns), dtype=float)
         if self._factors is not None:
             return self._fast(z, subset)
         out = self._transform(z)

@@ -340,7 +340,10 @@ class PhysicsLibrary(BaseFeatureLibrary):
         """The checked columns and widths for ``indices``, cached per fit:
         integrators ask for the same few columns at every stage."""
         cache = self.__dict__.setdefault("_plans", {})
-        key = (None if indices is None else tuple(int(i) for i in indices), exact)
+        if indices is None or isinstance(indices, tuple):
+            key = (indices, exact)  # integrators pass a tuple: hashed as it is
+        else:
+            key = (tuple(int(i) for i in indices), exact)
         plan = cache.get(key)
         if plan is None:
             chosen = self._fitted_columns(indices)
