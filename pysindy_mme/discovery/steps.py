@@ -16,7 +16,7 @@
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -193,17 +193,11 @@ def _fit_from_guessed_trajectory(study, engine, theta):
 
 def _fit_from_mme_start(study, engine, theta):
     """The assumed model's fit started from MME's states at the guesses."""
-    mme = clone(study.mme)
-    if study.n_parameters:
-        mme.set_params(assumed_model=study.assumed_at(study.parameter_init))
-    y = study.y
+    mme = _mme_at_guesses(study)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            if study.n_records > 1:
-                mme.fit(y, study.t, study.inputs.u, starts=study.starts)
-            else:
-                mme.fit(y, study.t, study.inputs.u)
+            _fit_mme(mme, study, study.y)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, DivergenceError):
         return None
     x_hat = np.asarray(mme.smoothed_x_)
@@ -290,8 +284,7 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
             # its estimate (a square-root outflow at an empty tank): the
             # model error is estimated at the user's guesses instead; the
             # confirmation refits the parameters with the terms anyway.
-            mme = clone(study.mme)
-            mme.set_params(assumed_model=study.assumed_at(study.parameter_init))
+            mme = _mme_at_guesses(study)
             _fit_mme(mme, study, y)
             notes.append(
                 "MME could not integrate the assumed model at its fitted "
@@ -313,6 +306,14 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
             "share": rms_d / rms_total if rms_total > 0 else float("nan"),
         }
     return ErrorEstimate(mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes)
+
+
+def _mme_at_guesses(study):
+    """A fresh copy of the study's MME, its model at the guessed parameters."""
+    mme = clone(study.mme)
+    if study.n_parameters:
+        mme.set_params(assumed_model=study.assumed_at(study.parameter_init))
+    return mme
 
 
 def _fit_mme(mme, study, y):
@@ -766,7 +767,6 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     ``build_extended(fit) -> model`` makes the printed model of a fit;
     ``runs``: the in-sample free runs (the assumed one picks the stretch).
     """
-    from dataclasses import replace
 
     if study.n_records > 1:
         return _held_out_record(study, fits, build_extended, features, substeps)
@@ -778,24 +778,9 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
     keep = slice(stop, n) if start == 0 else slice(0, start)
     window = min(study.validation_window, max(2, (stop - start) // 5))
     u = study.u
-    rest = replace(
-        study,
-        y=study.y[keep],
-        t=study.t[keep],
-        u=None if u is None else u[keep],
-        inputs=study.inputs.subset(keep.start, keep.stop),
-        x_init=study.x_init[keep],
-        validation_window=window,
+    rest, models, converged = _refit_without(
+        study, keep, window, fits, build_extended, features, substeps
     )
-    engine = output_error_engine(rest, features, substeps)
-    a, e = fits["assumed"], fits["extended"]
-    refit_a = engine.fit((), a.theta, a.x[keep])
-    refit_e = engine.fit(e.slots, e.theta, e.x[keep]) if e.slots else refit_a
-    assumed_model = study.model_at(refit_a.physical)
-    models = {
-        "assumed": assumed_model,
-        "extended": build_extended(refit_e) if e.slots else assumed_model,
-    }
     record = (
         study.y[start:stop],
         study.t[start:stop],
@@ -808,23 +793,17 @@ def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=No
         f"{sig(study.t[stop - 1])}, the {where} {stop - start} samples; both "
         "models refitted without it)"
     )
-    converged = refit_a.converged and refit_e.converged
     return runs, source, window, converged
 
 
-def _held_out_record(study, fits, build_extended, features, substeps):
-    """:func:`held_out_runs` for several records: the last record held out
-    whole (both models refitted on the others), None when it is too short."""
-    from dataclasses import replace
-
-    last = study.record_slices[-1]
-    size = last.stop - last.start
-    window = min(study.validation_window, max(2, size // 5))
-    if size - window < MIN_HELD_OUT:
-        return None
-    keep = slice(0, last.start)
+def _refit_without(
+    study, keep, window, fits, build_extended, features, substeps, **rest
+):
+    """Both models refitted on the samples ``keep`` only: ``(the study on
+    them, {"assumed", "extended"} models, both refits converged)``.
+    ``rest``: further fields of the reduced study (its record breaks)."""
     u = study.u
-    rest = replace(
+    reduced = replace(
         study,
         y=study.y[keep],
         t=study.t[keep],
@@ -832,9 +811,9 @@ def _held_out_record(study, fits, build_extended, features, substeps):
         inputs=study.inputs.subset(keep.start, keep.stop),
         x_init=study.x_init[keep],
         validation_window=window,
-        starts=np.asarray(study.starts[:-1], dtype=int),
+        **rest,
     )
-    engine = output_error_engine(rest, features, substeps)
+    engine = output_error_engine(reduced, features, substeps)
     a, e = fits["assumed"], fits["extended"]
     refit_a = engine.fit((), a.theta, a.x[keep])
     refit_e = engine.fit(e.slots, e.theta, e.x[keep]) if e.slots else refit_a
@@ -843,6 +822,30 @@ def _held_out_record(study, fits, build_extended, features, substeps):
         "assumed": assumed_model,
         "extended": build_extended(refit_e) if e.slots else assumed_model,
     }
+    return reduced, models, refit_a.converged and refit_e.converged
+
+
+def _held_out_record(study, fits, build_extended, features, substeps):
+    """:func:`held_out_runs` for several records: the last record held out
+    whole (both models refitted on the others), None when it is too short."""
+
+    last = study.record_slices[-1]
+    size = last.stop - last.start
+    window = min(study.validation_window, max(2, size // 5))
+    if size - window < MIN_HELD_OUT:
+        return None
+    keep = slice(0, last.start)
+    u = study.u
+    rest, models, converged = _refit_without(
+        study,
+        keep,
+        window,
+        fits,
+        build_extended,
+        features,
+        substeps,
+        starts=np.asarray(study.starts[:-1], dtype=int),
+    )
     record = (study.y[last], study.t[last], None if u is None else u[last])
     runs = validation_runs(rest, models, features, substeps, record)
     source = (
@@ -850,7 +853,7 @@ def _held_out_record(study, fits, build_extended, features, substeps):
         f"{sig(study.t[last.start])} .. {sig(study.t[last.stop - 1])}; both models "
         "refitted on the other records)"
     )
-    return runs, source, window, refit_a.converged and refit_e.converged
+    return runs, source, window, converged
 
 
 def hold_out(study, gain, fits, build_extended, features, substeps) -> None:
