@@ -1,0 +1,155 @@
+"""Does the model error have memory? Evidence for a state the model lacks.
+
+A missing effect that is a function of the current states and inputs, however
+complicated (a jump, a kink, a saturation), makes the model error ``d(t)`` a
+*static* function ``g(x(t), u(t))``: two instants with the same states and
+inputs have the same ``d``. A missing *state* (a hysteretic force, a lag, a
+temperature) breaks that: the same ``(x, u)`` meet different ``d`` depending
+on the history. The test here asks which of the two the MME estimate looks
+like, without assuming a library:
+
+* the *static* predictability of ``d_i``: the block cross-validated R^2 of a
+  k-nearest-neighbour regression of ``d_i`` on the standardised ``(x, u)``
+  (nonparametric, so any static function counts, whatever the library);
+* the *history* predictability: the same with the states ``x(t - L)`` one
+  lag earlier added as coordinates, the best of a few lags ``L``.
+
+When history predicts a large share of ``d_i`` that the present cannot
+(``r2_history - r2_static`` at least :data:`MEMORY_GAIN`, and the unexplained
+share cut to at most :data:`MEMORY_RATIO` of the static one), a state the
+model does not have is likely, entering the equation of state ``i``.
+
+Why not a library test: the point is to tell "the library lacks the function"
+from "no function of these states can do it", and only a regression that can
+fit any static function tells them apart. Why contiguous blocks: ``d(t)`` is
+smooth, so a random split would let neighbours in time (nearly equal ``d``)
+predict each other whatever the truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.neighbors import KNeighborsRegressor
+
+__all__ = ["MemoryEvidence", "memory_evidence", "MEMORY_GAIN", "MEMORY_RATIO"]
+
+#: the history must raise the cross-validated R^2 by at least this much ...
+MEMORY_GAIN = 0.25
+#: ... and leave at most this share of the static regression's unexplained part
+MEMORY_RATIO = 0.7
+#: nearest neighbours averaged (a smoother of the d(t)-versus-state relation)
+N_NEIGHBOURS = 10
+#: contiguous cross-validation blocks
+N_BLOCKS = 5
+#: at most this many samples enter the regressions (evenly strided)
+MAX_POINTS = 20_000
+
+
+@dataclass(frozen=True)
+class MemoryEvidence:
+    """What the history of the states adds to predicting ``d_i(t)``.
+
+    Attributes
+    ----------
+    state : int
+        The error state ``i``.
+    r2_static : float
+        Block cross-validated R^2 of ``d_i`` from ``(x(t), u(t))``.
+    r2_history : float
+        The same with ``x(t - lag)`` added, at the best lag.
+    lag : int
+        That lag, in samples.
+    suspected : bool
+        The history explains markedly more than the present: a missing state.
+    """
+
+    state: int
+    r2_static: float
+    r2_history: float
+    lag: int
+    suspected: bool
+
+    def describe(self, name: str) -> str:
+        return (
+            f"the model error of {name}' is {100 * max(self.r2_static, 0):.0f}% "
+            f"predictable from the present states and inputs, "
+            f"{100 * max(self.r2_history, 0):.0f}% with the states {self.lag} "
+            "samples earlier"
+        )
+
+
+def _cv_r2(features, target, starts_ok) -> float:
+    """Block cross-validated R^2 of a k-NN regression (contiguous blocks)."""
+    keep = np.flatnonzero(starts_ok)
+    if keep.size > MAX_POINTS:
+        keep = keep[:: int(np.ceil(keep.size / MAX_POINTS))]
+    f, y = features[keep], target[keep]
+    sd = f.std(axis=0)
+    f = (f[:, sd > 0] - f[:, sd > 0].mean(axis=0)) / sd[sd > 0]
+    total = float(np.sum((y - y.mean()) ** 2))
+    if total == 0 or f.shape[1] == 0:
+        return 0.0
+    blocks = np.array_split(np.arange(y.size), N_BLOCKS)
+    ssr = 0.0
+    for block in blocks:
+        train = np.ones(y.size, bool)
+        train[block] = False
+        knn = KNeighborsRegressor(n_neighbors=N_NEIGHBOURS).fit(f[train], y[train])
+        ssr += float(np.sum((knn.predict(f[block]) - y[block]) ** 2))
+    return 1.0 - ssr / total
+
+
+def _lags(n_samples: int) -> list:
+    """Lags tried: 1, 2, 4, ... samples, up to a fiftieth of the record."""
+    top = max(1, min(n_samples // 50, 512))
+    return [int(2**k) for k in range(int(np.log2(top)) + 1)]
+
+
+def memory_evidence(x, d, u=None, error_states=None, starts=(0,)) -> list:
+    """Test each error state's model error for memory (see module docstring).
+
+    Parameters
+    ----------
+    x : ndarray (N, n)
+        Estimated states (MME).
+    d : ndarray (N, n)
+        Estimated model error (MME).
+    u : ndarray (N, n_inputs), optional
+    error_states : sequence of int, optional
+        States to test (default: every state with a nonzero ``d``).
+    starts : sequence of int
+        First sample of each record (a lag never reaches across records).
+
+    Returns
+    -------
+    list of MemoryEvidence
+    """
+    x = np.asarray(x, dtype=float)
+    d = np.asarray(d, dtype=float)
+    n = x.shape[0]
+    static = x if u is None else np.hstack([x, np.asarray(u, float).reshape(n, -1)])
+    if error_states is None:
+        error_states = [i for i in range(d.shape[1]) if np.any(d[:, i] != 0)]
+    finite = np.all(np.isfinite(static), axis=1) & np.all(np.isfinite(d), axis=1)
+    out = []
+    for i in error_states:
+        r2_static = _cv_r2(static, d[:, i], finite)
+        best, best_lag = -np.inf, 0
+        for lag in _lags(n):
+            ok = finite.copy()
+            for s in starts:  # the first `lag` samples of a record have no past
+                ok[s : s + lag] = False
+            past = np.roll(x, lag, axis=0)
+            ok[lag:] &= finite[:-lag]
+            r2 = _cv_r2(np.hstack([static, past]), d[:, i], ok)
+            if r2 > best:
+                best, best_lag = r2, lag
+        unexplained = max(1.0 - r2_static, 1e-12)
+        suspected = bool(
+            best - r2_static >= MEMORY_GAIN
+            and (1.0 - best) <= MEMORY_RATIO * unexplained
+        )
+        out.append(MemoryEvidence(int(i), r2_static, float(best), best_lag, suspected))
+    return out
