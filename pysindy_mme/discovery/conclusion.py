@@ -36,6 +36,14 @@ never pass (:class:`Overshoot`: above the highest reading, or below the
 lowest, by more than 3 noise sd, where the data sit at that extreme) adds a
 reason and the advice to try a saturation or overflow there; it changes no
 label.
+
+When the assumed model's error has memory that no function of the present
+states gives (:mod:`.memory`: history predicts it markedly better than the
+present), a :class:`MissingState` adds a reason and, first, the advice to
+add a hidden state entering that equation; without kept terms the verdict
+says a state is likely missing instead of "the library lacks the effect".
+It changes no label either: a static correction that fits to the noise and
+holds out of sample is still an explanation.
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ __all__ = [
     "Conclusion",
     "Evidence",
     "Overshoot",
+    "MissingState",
     "conclude",
     "FIT_FACTOR",
     "HELD_OUT_MARGIN",
@@ -86,6 +95,43 @@ class Conclusion:
     verdict: str
     reasons: tuple
     advice: tuple = ()
+
+
+@dataclass(frozen=True)
+class MissingState:
+    """Evidence that the model lacks a state entering ``equation``'.
+
+    Attributes
+    ----------
+    equation : str
+        The state whose equation the missing state would enter.
+    evidence : str
+        What the memory test measured (:meth:`.memory.MemoryEvidence.describe`).
+    name : str
+        A free name for the suggested hidden state.
+    """
+
+    equation: str
+    evidence: str
+    name: str = "z"
+
+    def sentence(self) -> str:
+        return (
+            f"{self.evidence}: the model error has memory that no function of the "
+            f"present states gives; a state the model does not have is likely, "
+            f"entering {self.equation}'"
+        )
+
+    def option(self) -> str:
+        return f"hidden_states={{'{self.name}': '{self.equation}'}}"
+
+    def advice(self) -> str:
+        return (
+            f"a hidden state entering {self.equation}': discover(..., "
+            f"hidden_states={{'{self.name}': '{self.equation}'}}) (command line: "
+            f"--hidden-state {self.name}:{self.equation}), with a library of the "
+            f"states and {self.name}"
+        )
 
 
 @dataclass(frozen=True)
@@ -184,6 +230,7 @@ class Evidence:
     parameters: list = field(default_factory=list)
     noise_doubt: str | None = None
     overshoots: list = field(default_factory=list)
+    memory: list = field(default_factory=list)
 
 
 def combined(rmse, floor) -> float:
@@ -196,7 +243,35 @@ def combined(rmse, floor) -> float:
 def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
     found = _without_terms(ev) if not ev.terms else _with_terms(ev)
-    return _with_overshoots(found, ev.overshoots)
+    return _with_overshoots(_with_memory(found, ev.memory), ev.overshoots)
+
+
+def _with_memory(found: Conclusion, missing) -> Conclusion:
+    """A likely missing state: a reason, and its advice first (label kept)."""
+    if not missing or found.label == "consistent":
+        return found
+    reasons = list(found.reasons)
+    reasons[1:1] = [m.sentence() for m in missing]
+    advice = [m.advice() for m in missing] + [
+        a for a in found.advice if a != _TRY["library"]
+    ]
+    short = missing[0].option()
+    if found.label == "not explained" and found.verdict.startswith(_NO_TERM):
+        verdict = (
+            "the data contradict the assumed model, and no library term explains "
+            "it: the model error has memory no function of the present states "
+            f"gives, so a state the model does not have is likely (try {short})"
+        )
+    elif found.label == "inconclusive":
+        verdict = (
+            f"inconclusive: {reasons[0]}; a state the model does not have is "
+            f"likely (try {short})"
+        )
+    else:
+        verdict = (
+            f"{found.verdict}; a state the model does not have is likely (try {short})"
+        )
+    return replace(found, verdict=verdict, reasons=tuple(reasons), advice=tuple(advice))
 
 
 def _with_overshoots(found: Conclusion, overshoots) -> Conclusion:
@@ -223,9 +298,8 @@ def _without_terms(ev: Evidence) -> Conclusion:
         return _inconclusive(reasons + doubts, [_TRY["noise"]])
     if ev.contradicted:
         verdict = (
-            "the data contradict the assumed model, but no library term explains "
-            "it: the library lacks the effect (try other functions, inputs, or "
-            "check the noise variance and the model's parameters)"
+            f"{_NO_TERM} it: the library lacks the effect (try other functions, "
+            "inputs, or check the noise variance and the model's parameters)"
         )
         return Conclusion(
             "not explained", verdict, tuple(reasons + doubts), (_TRY["library"],)
@@ -367,6 +441,8 @@ def _inconclusive(reasons, advice) -> Conclusion:
         verdict += f" (try: {advice[0]})"
     return Conclusion("inconclusive", verdict, tuple(reasons), tuple(advice))
 
+
+_NO_TERM = "the data contradict the assumed model, but no library term explains"
 
 _TRY = {
     "converge": (

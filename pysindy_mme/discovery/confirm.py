@@ -12,7 +12,12 @@ space (:mod:`.output_error`):
 1. start: the proposed terms refitted together (initial state and all
    coefficients, from the MME state estimate), or, when there are many or
    the joint fit fails, added one at a time in the order the regression
-   chose them, each kept only if it improves the fit significantly;
+   chose them, each kept only if it improves the fit significantly; the
+   start is completed by forward steps (4.) before it is pruned;
+   then the proposals that failed alone are fitted as one group on top of
+   what was kept (terms that matter only together: a hysteretic law
+   ``z' = a v - b |v| z`` does nothing with either term alone), pruned
+   backward, and kept if the group improves the fit significantly;
 2. swap: each term is taken out and the look-alike library functions of its
    equation (most correlated along the current trajectory) put in instead;
    a pair of terms of one equation may be merged into the single function
@@ -179,7 +184,15 @@ class _Search:
         return np.where(np.isfinite(t2), t2 / raw, 0.0)
 
     def backward(self, slots, fit):
-        """Drop terms that are not significant or too small, weakest first."""
+        """Drop terms that are not significant or too small, weakest first.
+
+        The Wald statistics of the joint fit rank the candidates for removal;
+        each removal is then confirmed by the fit without the term (the
+        change in cost, a likelihood-ratio F-test). Why both: in a model whose
+        terms feed back through the states (a hysteretic law) the Wald
+        linearisation can call a term worthless whose removal multiplies the
+        misfit; the refit is the test the forward steps use too.
+        """
         removed = []
         while slots:
             pvals = fit.coefficient_p_values()
@@ -187,13 +200,36 @@ class _Search:
             failing = (pvals > self.alpha_term) | (effects < self.min_effect)
             if not np.any(failing):
                 break
-            worst = int(np.argmax(np.where(failing, pvals - effects, -np.inf)))
-            removed.append((slots[worst], float(pvals[worst]), float(effects[worst])))
-            keep = [k for k in range(len(slots)) if k != worst]
-            slots = [slots[k] for k in keep]
-            if not slots:
-                return [], self.assumed, removed
-            fit = self.refit(slots, fit.coefficients[keep], fit)
+            order = np.argsort(-np.where(failing, pvals - effects, -np.inf))
+            dropped = False
+            for worst in order[: int(np.count_nonzero(failing))]:
+                worst = int(worst)
+                keep = [k for k in range(len(slots)) if k != worst]
+                smaller = [slots[k] for k in keep]
+                without = (
+                    self.refit(smaller, fit.coefficients[keep], fit)
+                    if smaller
+                    else self.assumed
+                )
+                if without.ok:
+                    p, gain, needed = self.improves(without, fit)
+                    if needed:
+                        continue  # the refit says it matters: keep it
+                removed.append(
+                    (slots[worst], float(pvals[worst]), float(effects[worst]))
+                )
+                slots = smaller
+                if not slots:
+                    return [], self.assumed, removed
+                fit = (
+                    without
+                    if without.ok
+                    else self.refit(slots, fit.coefficients[keep], fit)
+                )
+                dropped = True
+                break
+            if not dropped:
+                break
         return slots, fit, removed
 
     def accept(self, slots, fit):
@@ -396,6 +432,58 @@ def _forward_step(search: _Search) -> bool:
     return False
 
 
+def _group_step(search: _Search, proposals, values) -> bool:
+    """The proposals that failed alone, fitted together on the kept terms.
+
+    The regression of ``d(t)`` chose its proposals jointly; one-at-a-time
+    fits cannot see terms whose effect only exists together (each alone is
+    absorbed by a parameter, or cancels). The group starts from the current
+    fit with its coefficients at 0 and at the regression's values (the
+    better fit is used), is pruned backward (every term significant at the
+    Bonferroni level in the joint fit), and is kept if the terms it adds
+    improve the fit significantly (F-test on the number added) or, when
+    it also removes kept terms, if it lowers the BIC.
+    """
+    group = [
+        (slot, value)
+        for slot, value in zip(proposals, values)
+        if slot not in search.slots
+    ][:JOINT_START_MAX]
+    if len(group) < 2:  # one term alone was already tried alone
+        return False
+    slots = search.slots + [slot for slot, _ in group]
+    best = None
+    for start in ([0.0] * len(group), [value for _, value in group]):
+        trial = search.refit(slots, [*search.fit.coefficients, *start], search.fit)
+        if trial.ok and (best is None or trial.cost < best.cost):
+            best = trial
+    if best is None:
+        return False
+    kept, trial, _ = search.backward(list(slots), best)
+    added = [slot for slot in kept if slot not in search.slots]
+    if not added or not trial.ok:
+        return False
+    n_added = len(kept) - len(search.slots)
+    if n_added > 0:
+        p, _, ok = search.improves(search.fit, trial, n_added=n_added)
+    else:
+        p, ok = float("nan"), better_bic(trial, search.fit)
+    if not ok:
+        return False
+    for slot in search.slots:
+        if slot not in kept:
+            search.reject(slot, "redundant once the group of proposals is in")
+    search.rejected = [(s, why) for s, why in search.rejected if s not in kept]
+    search.accept(kept, trial)
+    names = ", ".join(search.describe(slot) for slot in added)
+    search.note(
+        f"kept {names} together (they fail alone; p = {p:.2g} for the group)"
+        if n_added > 0
+        else f"kept {names} together in place of weaker terms (lower BIC)"
+    )
+    return True
+
+
 def _too_weak(p, gain, min_effect) -> str:
     if gain < min_effect:
         return (
@@ -447,7 +535,15 @@ def confirm_terms(
     )
     proposals = [(int(i), int(c)) for i, c in proposals]
     search.start(proposals, list(start_values), x_start)
+    # Complete the start before pruning it: a group that only works together
+    # loses its members one by one to the backward step when one member is
+    # missing (the regression of d(t) proposed z and |v| z of a hysteretic
+    # law but not v |z|; without it, v and z are not significant).
+    for _ in range(MAX_ROUNDS if search.slots else 0):
+        if not _forward_step(search):
+            break
     _prune(search, alpha_term, min_effect)  # a joint start may hold many
+    _group_step(search, proposals, list(start_values))
     search.tried = set(search.slots)
     swap_checked = set()
     for _ in range(MAX_ROUNDS):

@@ -22,6 +22,7 @@ from ..core.libraries import fresh_library
 from ..core.noise import describe_noise, estimate_noise_variance
 from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
+from .hidden import HiddenStates, add_hidden_states
 from .parameters import parameter_spec
 from .placement import default_error_states
 
@@ -57,6 +58,7 @@ MME_KEYWORDS = {
     "error_states": None,
     "W": "auto",
     "error_model": "white",
+    "n_substeps": 1,
 }
 
 
@@ -175,6 +177,8 @@ class Study:
     starts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     #: every validation record ``(y, t, u)`` (``validation`` is the first)
     validation_records: list | None = None
+    #: states added by ``hidden_states`` (None without)
+    hidden: HiddenStates | None = None
 
     @property
     def n_records(self) -> int:
@@ -305,6 +309,59 @@ def _estimator(mme, given: dict, u, input_hold, parameters: dict):
             )
         given["assumed_model"] = AtParameters(raw, parameters, parameters.values())
     return MME(u=u, input_hold=input_hold, **given)
+
+
+def _with_hidden(spec, mme, given, feature_names, equations, grey, u, t):
+    """Discover's arguments with the hidden states appended to the model.
+
+    The model, ``n_states``, ``error_states`` (default: the hidden states
+    only), ``feature_names`` and ``assumed_equations`` all get the new
+    states; see :mod:`.hidden`.
+    """
+    source = mme.get_params() if mme is not None else given
+    n = source["n_states"]
+    if n is None or isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise TypeError("hidden_states needs n_states= (the assumed model's states)")
+    n = int(n)
+    n_inputs = _count_inputs(u if u is not None or mme is None else mme.u, t)
+    names = list(feature_names) if feature_names is not None else None
+    if names is not None and len(names) != n + n_inputs:
+        raise ValueError(
+            f"feature_names has {len(names)} names but there are {n} states and "
+            f"{n_inputs} inputs (before the hidden states)"
+        )
+    visible = names[:n] if names is not None else [f"x{i}" for i in range(n)]
+    model, hidden = add_hidden_states(
+        source["assumed_model"], n, spec, visible, grey=grey
+    )
+    errors = source["error_states"]
+    errors = (
+        hidden.indices
+        if errors is None
+        else list(
+            dict.fromkeys([int(i) for i in np.atleast_1d(errors)] + hidden.indices)
+        )
+    )
+    inputs = names[n:] if names is not None else [f"u{i}" for i in range(n_inputs)]
+    feature_names = visible + hidden.names + inputs
+    if equations is None:
+        equations = [f"f_{name}(x, t)" for name in visible]
+    elif len(equations) != n:
+        raise ValueError(
+            f"assumed_equations has {len(equations)} entries, expected {n} "
+            "(one per state of the assumed model, before the hidden states)"
+        )
+    equations = list(equations) + ["0"] * len(hidden.names)
+    for name, j in zip(hidden.names, hidden.enters):
+        equations[j] = f"{equations[j]} + {name}"
+    update = dict(
+        assumed_model=model, n_states=n + len(hidden.names), error_states=errors
+    )
+    if mme is not None:
+        mme = clone(mme).set_params(**update)
+    else:
+        given = {**given, **update}
+    return mme, given, feature_names, equations, hidden
 
 
 def _parameters(parameters) -> tuple:
@@ -825,6 +882,7 @@ def check_study(
     offsets=False,
     min_effect=0.01,
     clipped="auto",
+    hidden_states=None,
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
@@ -868,6 +926,18 @@ def check_study(
         u = None if u is None else u[rows]
         clipping = clipping.rows(rows)
     params, bounds = _parameters(parameters)
+    hidden = None
+    if hidden_states is not None:
+        mme, mme_keywords, feature_names, assumed_equations, hidden = _with_hidden(
+            hidden_states,
+            mme,
+            mme_keywords,
+            feature_names,
+            assumed_equations,
+            bool(params),
+            u,
+            t,
+        )
     est = _estimator(mme, mme_keywords, u, input_hold, params)
     if cut != (0, 0) and u is None and est.u is not None and not callable(est.u):
         est.set_params(u=np.asarray(est.u, dtype=float).reshape(n_samples, -1)[rows])
@@ -952,5 +1022,6 @@ def check_study(
         validation_clipped_cut=validation_cut,
         starts=starts,
         validation_records=validation_records,
+        hidden=hidden,
         **_noise_record(problem),
     )

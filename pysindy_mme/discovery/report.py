@@ -154,6 +154,25 @@ def _what_is_wrong(res) -> list:
         for name, s in res.d_summary.items()
     ]
     out.append(text_table(["state", "rms d(t)", "rms dx/dt", "share missed"], rows))
+    if res.memory:
+        names = res.study.state_names
+        rows = [
+            [
+                names[m.state],
+                f"{sig(100 * max(m.r2_static, 0.0), 3)}%",
+                f"{sig(100 * max(m.r2_history, 0.0), 3)}%",
+                str(m.lag),
+                "LIKELY MISSING STATE" if m.suspected else "no",
+            ]
+            for m in res.memory
+        ]
+        out.append(
+            "Memory of d(t) (cross-validated share predicted by the present states "
+            "and inputs, and with the states `lag` samples earlier too):"
+        )
+        out.append(
+            text_table(["state", "present", "with history", "lag", "memory"], rows)
+        )
     return out + [""]
 
 

@@ -155,6 +155,11 @@ class Discovery:
         How the kinks of non-smooth kept terms were integrated, and the
         check that their smoothing width does not change the result (empty
         without such terms; a width that matters is a warning instead).
+    memory : list of MemoryEvidence
+        Per error state, how well the present states and inputs predict the
+        assumed model's error ``d(t)``, and how much better their history
+        does (:mod:`pysindy_mme.discovery.memory`); ``suspected`` marks a
+        likely missing state, named in the reasons and the advice.
     warnings : list of str
     """
 
@@ -176,6 +181,7 @@ class Discovery:
     advice: list = field(default_factory=list)
     trade_offs: list = field(default_factory=list)
     smoothing: str = ""
+    memory: list = field(default_factory=list)
 
     # ----------------------------------------------------- read off the steps
     t = property(lambda self: self.study.t)

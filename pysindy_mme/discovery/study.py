@@ -13,11 +13,18 @@ import numpy as np
 from ..core.progress import Progress
 from ..core.tables import p_value, sig
 from ..exceptions import DiscoveryWarning
-from .conclusion import RUNAWAY_FACTOR, TRADE_OFF_CORRELATION, Evidence, conclude
+from .conclusion import (
+    RUNAWAY_FACTOR,
+    TRADE_OFF_CORRELATION,
+    Evidence,
+    MissingState,
+    conclude,
+)
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .extended import ExtendedModel
 from .identifiability import exact_trade_offs
 from .inputs import check_study
+from .memory import memory_evidence
 from .propose import propose_terms
 from .result import Discovery, TermEstimate
 from .statistics import residual_inflation
@@ -65,6 +72,8 @@ def discover(
     offsets=False,
     min_effect=0.01,
     clipped="auto",
+    hidden_states=None,
+    n_substeps=1,
     verbose=False,
 ):
     """Find what an assumed model gets wrong, name the cause, fix it, measure it.
@@ -177,6 +186,26 @@ def discover(
         to anchor the fit) is cut from it. The report names them
         (``Discovery.clipped``), and says when a model's free run crosses a
         level the data never exceed.
+    hidden_states : dict, optional
+        States nobody measured that the assumed model lacks, ``{name:
+        equation it enters}`` (a state name from ``feature_names`` or an
+        index): ``hidden_states={"z": "v"}`` adds a state ``z`` with
+        ``v' = f_v + z`` and ``z' = 0`` assumed, and the study estimates
+        ``z`` (MME) and searches its law in the library (give a library of
+        the variables the law may use, ``z`` among them: the feature names
+        are the states, then the hidden states, then the inputs). ``z`` is
+        in the units of ``v'`` (a force ``F`` on a mass ``m`` shows as
+        ``-F / m``), its initial value is fitted, and the model error sits
+        on the hidden states only unless ``error_states`` names others
+        (indices of the original states keep their meaning). When the
+        assumed model's error has memory no function of the states can
+        give, the report says so and names this option
+        (:mod:`pysindy_mme.discovery.hidden`).
+    n_substeps : int, default 1
+        Fewest RK4 steps per sample interval in every fit and simulation
+        (the study raises it to what the model's fastest time scale needs);
+        raise it when the report says the result changes with the
+        integration step. With ``mme=``, set it there.
     verbose : bool
         Report each stage on standard error (stages are always logged to the
         ``"pysindy_mme"`` logger).
@@ -234,8 +263,23 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     final = "extended" if confirmation.slots else "assumed"
     crossed = overshoots(study, fits[final], gain.in_sample_runs[final], final)
+    memory = memory_evidence(
+        estimate.x,
+        estimate.d,
+        study.u,
+        # a hidden state's own equation is not tested: its estimate comes
+        # from the same d(t), so its relation to d is not evidence
+        [
+            int(i)
+            for i in study.error_states
+            if study.hidden is None or int(i) not in study.hidden.indices
+        ],
+        study.starts if study.starts.size else (0,),
+    )
     conclusion = conclude(
-        _evidence(study, assumed, confirmation, gain, names, trade_offs, crossed)
+        _evidence(
+            study, assumed, confirmation, gain, names, trade_offs, crossed, memory
+        )
     )
     for note in notes:
         warnings.warn(note, DiscoveryWarning, stacklevel=3)
@@ -258,6 +302,7 @@ def run_study(study, progress: Progress) -> Discovery:
         advice=list(conclusion.advice),
         trade_offs=trade_offs,
         smoothing=smoothing,
+        memory=memory,
     )
 
 
@@ -271,7 +316,7 @@ def _quantity_names(study, proposals, fit) -> list:
 
 
 def _evidence(
-    study, assumed, confirmation, gain, names, trade_offs, crossed=()
+    study, assumed, confirmation, gain, names, trade_offs, crossed=(), memory=()
 ) -> Evidence:
     fit = confirmation.fit or assumed.fit
     noise = study.noise_doubt
@@ -297,7 +342,25 @@ def _evidence(
         parameters=_parameter_doubts(study, fit),
         noise_doubt=noise,
         overshoots=list(crossed),
+        memory=[
+            MissingState(
+                study.state_names[m.state],
+                m.describe(study.state_names[m.state]),
+                _hidden_name(study),
+            )
+            for m in memory
+            if m.suspected
+        ],
     )
+
+
+def _hidden_name(study) -> str:
+    """A name for a suggested hidden state that no state or input has."""
+    taken = set(study.state_names) | set(study.input_names)
+    for name in ("z", "w", "h1", "h2", "h3"):
+        if name not in taken:
+            return name
+    return "hidden"
 
 
 def _undetermined(fit, names) -> list:
