@@ -1080,7 +1080,11 @@ def _bouc_wen_interval(x, uk, dt, n, m, c, k, alpha, beta, gamma, delta):
     bg, bd = beta * gamma, beta * delta
 
     def rhs(y, v, z):
-        return v, (uk - c * v - k * y - z) / m, alpha * v - bg * abs(v) * z - bd * v * abs(z)
+        return (
+            v,
+            (uk - c * v - k * y - z) / m,
+            alpha * v - bg * abs(v) * z - bd * v * abs(z),
+        )
 
     y, v, z = x
     h = dt / n
