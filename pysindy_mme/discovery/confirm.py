@@ -114,6 +114,60 @@ class _Search:
         self.slots, self.fit = [], assumed
         self.log, self.rejected = [], []
         self.tried = set()
+        self.mme = None  # (x, d, physical): MME's estimate, see mme_trial
+
+    # ------------------------------------------------------------ MME start
+    def mme_fit(self) -> OutputErrorFit:
+        """A placeholder fit at MME's trajectory and parameters (a start)."""
+        x, _, physical = self.mme
+        return OutputErrorFit(
+            slots=(),
+            theta=np.concatenate([physical, self.assumed.offsets]),
+            x=x,
+            cost=np.nan,
+            n_residuals=0,
+            n_free=0,
+            converged=False,
+            message="",
+            rank_deficient=False,
+            n_iter=0,
+            n_physical=self.assumed.n_physical,
+            n_offsets=self.assumed.n_offsets,
+        )
+
+    def mme_coefficients(self, slots) -> np.ndarray:
+        """Least-squares coefficients of ``slots`` on MME's ``d(t)``, per
+        equation, along MME's states (zeros where it cannot be solved)."""
+        x, d, _ = self.mme
+        u = self.engine.inputs.grid()
+        z = x if u is None else np.hstack([x, u])
+        coefs = np.zeros(len(slots))
+        with np.errstate(all="ignore"):
+            cols = self.engine.features(z, [c for _, c in slots])
+        for i in {s[0] for s in slots}:
+            rows = [k for k, s in enumerate(slots) if s[0] == i]
+            a = cols[:, rows]
+            ok = np.all(np.isfinite(a), axis=1) & np.isfinite(d[:, i])
+            if np.count_nonzero(ok) > len(rows):
+                coefs[rows] = np.linalg.lstsq(a[ok], d[ok, i], rcond=None)[0]
+        return coefs
+
+    def mme_trial(self, slots, best: OutputErrorFit | None) -> OutputErrorFit | None:
+        """``slots`` fitted from MME's states instead of the current fit; the
+        better of this and ``best``.
+
+        Why: MME's states follow the data whatever the model, while a fit of
+        fewer terms follows its own model. When the terms feed back through
+        a state (a hysteretic law), adding one term to a wrong fit starts in
+        the wrong basin; from MME's trajectory, with the coefficients that
+        best explain ``d(t)`` there, the same terms reach the right one.
+        """
+        if self.mme is None:
+            return best
+        trial = self.refit(slots, self.mme_coefficients(slots), self.mme_fit())
+        if trial.ok and (best is None or not best.ok or trial.cost < best.cost):
+            return trial
+        return best
 
     # -------------------------------------------------------------- fitting
     def theta(self, fit, coefs):
@@ -240,19 +294,23 @@ class _Search:
 
     # ---------------------------------------------------------------- start
     def start(self, proposals, values, x_start):
-        start_fit = OutputErrorFit(
-            slots=(),
-            theta=self.assumed.theta,
-            x=x_start,
-            cost=np.nan,
-            n_residuals=0,
-            n_free=0,
-            converged=False,
-            message="",
-            rank_deficient=False,
-            n_iter=0,
-            n_physical=self.assumed.n_physical,
-            n_offsets=self.assumed.n_offsets,
+        start_fit = (
+            self.mme_fit()
+            if self.mme is not None
+            else OutputErrorFit(
+                slots=(),
+                theta=self.assumed.theta,
+                x=x_start,
+                cost=np.nan,
+                n_residuals=0,
+                n_free=0,
+                converged=False,
+                message="",
+                rank_deficient=False,
+                n_iter=0,
+                n_physical=self.assumed.n_physical,
+                n_offsets=self.assumed.n_offsets,
+            )
         )
         if 0 < len(proposals) <= JOINT_START_MAX:
             joint = self.refit(proposals, values, start_fit, polish=True)
@@ -280,6 +338,8 @@ class _Search:
                 self.slots + [slot], [*self.fit.coefficients, 0.0], self.fit
             )
             trial = retry if retry.cost < trial.cost else trial
+        if not (trial.ok and self.improves(self.fit, trial)[2]):
+            trial = self.mme_trial(self.slots + [slot], trial)
         if not trial.ok:
             self.reject(slot, f"its extended model cannot be fitted ({trial.message})")
             return
@@ -416,6 +476,8 @@ def _forward_step(search: _Search) -> bool:
     trial = search.refit(
         search.slots + [slot], [*search.fit.coefficients, steps[best]], search.fit
     )
+    if not (trial.ok and search.improves(search.fit, trial)[2]):
+        trial = search.mme_trial(search.slots + [slot], trial)
     if not trial.ok:
         search.reject(slot, f"its extended model cannot be fitted ({trial.message})")
         return False
@@ -457,7 +519,8 @@ def _group_step(search: _Search, proposals, values) -> bool:
         trial = search.refit(slots, [*search.fit.coefficients, *start], search.fit)
         if trial.ok and (best is None or trial.cost < best.cost):
             best = trial
-    if best is None:
+    best = search.mme_trial(slots, best)
+    if best is None or not best.ok:
         return False
     kept, trial, _ = search.backward(list(slots), best)
     added = [slot for slot in kept if slot not in search.slots]
@@ -504,6 +567,7 @@ def confirm_terms(
     library_candidates=(),
     progress=None,
     min_effect: float = 0.0,
+    mme_start=None,
 ) -> Confirmation:
     """Select correction terms by output-error tests (see module docstring).
 
@@ -526,6 +590,10 @@ def confirm_terms(
         Every kept term must remove at least this share of the misfit of
         the model without it (practical significance: on a long record even
         a negligible term is statistically significant).
+    mme_start : tuple (x, d, physical), optional
+        MME's states and model error and the parameters it ran with: trial
+        fits that fail from the current fit are tried again from there
+        (:meth:`_Search.mme_trial`), and the joint start begins there.
     """
     # Every term was picked from the whole library: each one must pass at the
     # Bonferroni level, so that the chance of any false term stays ~alpha.
@@ -533,6 +601,9 @@ def confirm_terms(
     search = _Search(
         engine, assumed, alpha_term, describe, library_candidates, progress, min_effect
     )
+    if mme_start is not None:
+        x, d, physical = mme_start
+        search.mme = (np.asarray(x, float), np.asarray(d, float), np.asarray(physical))
     proposals = [(int(i), int(c)) for i, c in proposals]
     search.start(proposals, list(start_values), x_start)
     # Complete the start before pruning it: a group that only works together

@@ -74,6 +74,8 @@ class ErrorEstimate:
     d: np.ndarray
     summary: dict
     notes: list = field(default_factory=list)
+    #: the grey-box parameters MME ran with (empty without parameters)
+    physical: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def _base(study):
@@ -253,11 +255,22 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
     """
     mme = clone(study.mme)
     y = study.y
+    physical = np.asarray(assumed.fit.physical, float)
+    notes = []
+    if study.n_parameters and study.hidden is not None:
+        # With the hidden state frozen (z' = 0), step 1's parameters absorb
+        # its effect (a fitted stiffness takes on a hysteresis' stiffness),
+        # and MME would estimate z as what is left over. At the guesses, the
+        # user's split between parameters and hidden state holds.
+        physical = np.asarray(study.parameter_init, float)
+        notes.append(
+            "MME estimated the hidden state at the guessed parameters (step 1's "
+            "fit absorbs the hidden state's effect into them)"
+        )
     if study.n_parameters:
-        mme.set_params(assumed_model=study.assumed_at(assumed.fit.physical))
+        mme.set_params(assumed_model=study.assumed_at(physical))
     if study.offsets and assumed.fit.ok:
         y = study.y - assumed.fit.offsets
-    notes = []
     try:
         _fit_mme(mme, study, y)
     except DivergenceError as exc:
@@ -285,6 +298,7 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
             # model error is estimated at the user's guesses instead; the
             # confirmation refits the parameters with the terms anyway.
             mme = _mme_at_guesses(study)
+            physical = np.asarray(study.parameter_init, float)
             _fit_mme(mme, study, y)
             notes.append(
                 "MME could not integrate the assumed model at its fitted "
@@ -295,7 +309,7 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
         notes.append("MME did not converge; the state estimate may be poor")
     x_hat = np.asarray(mme.smoothed_x_)
     d_hat = np.asarray(mme.d_)
-    f_hat = study.model_at(assumed.fit.physical)(x_hat, study.t, study.u)
+    f_hat = study.model_at(physical)(x_hat, study.t, study.u)
     summary = {}
     for i in study.error_states:
         rms_d = float(np.sqrt(np.mean(d_hat[:, i] ** 2)))
@@ -305,7 +319,9 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
             "rms_dynamics": rms_total,
             "share": rms_d / rms_total if rms_total > 0 else float("nan"),
         }
-    return ErrorEstimate(mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes)
+    return ErrorEstimate(
+        mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes, physical=physical
+    )
 
 
 def _mme_at_guesses(study):
@@ -399,6 +415,7 @@ def confirm_on_measurements(
         library_candidates=proposals.candidates,
         progress=progress,
         min_effect=study.min_effect,
+        mme_start=(estimate.x, estimate.d, estimate.physical),
     )
     confirmation.rejected[:0] = list(proposals.rejected)
     drop_smoothing_artefacts(engine, confirmation, proposals.library, describe)
