@@ -27,6 +27,13 @@ from .records import SmootherResult
 __all__ = ["GaussNewton"]
 
 
+#: a damped step that lowers the merit by less than this (in units of the
+#: cost, a chi-square: a thousandth of one noise variance) makes no
+#: difference to any test the package runs, whose decisions rest on cost
+#: differences of several units
+STALL_DECREASE = 1e-3
+
+
 class GaussNewton:
     """The Gauss-Newton iteration of :class:`~.transcription.MMESmoother`."""
 
@@ -98,7 +105,8 @@ class GaussNewton:
             # Damped steps that no longer lower the merit measurably (an
             # inexact finite-difference Jacobian of the user's model limits
             # how far Gauss-Newton can go): stationary for all purposes.
-            stall = stall + 1 if alpha < 1 and phi0 - merit <= self.tol * phi0 else 0
+            floor = max(self.tol * phi0, STALL_DECREASE)
+            stall = stall + 1 if alpha < 1 and phi0 - merit <= floor else 0
             if stall >= 2:
                 converged = True
                 message = "converged (the merit function stopped decreasing)"
