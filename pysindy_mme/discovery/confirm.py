@@ -55,6 +55,8 @@ __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
 #: are at most this many (a joint fit of many terms on a long record costs
 #: more than fitting them one by one)
 JOINT_START_MAX = 6
+#: proposals that failed alone fitted together as one group (at most)
+GROUP_MAX = 6
 #: rounds of swap/backward/forward passes
 MAX_ROUNDS = 4
 #: Gauss-Newton iterations allowed to a trial fit (the chosen model is
@@ -510,7 +512,7 @@ def _group_step(search: _Search, proposals, values) -> bool:
         (slot, value)
         for slot, value in zip(proposals, values)
         if slot not in search.slots
-    ][:JOINT_START_MAX]
+    ][:GROUP_MAX]
     if len(group) < 2:  # one term alone was already tried alone
         return False
     slots = search.slots + [slot for slot, _ in group]
