@@ -509,7 +509,9 @@ def step_size_check(
             "the result changes with the integration step (refitted with twice "
             f"the RK4 steps: cost {fit.cost:.6g} -> {check.cost:.6g}"
             f"{_moved_most(fit.theta, check.theta, se, names)}): the model is "
-            "stiff or not smooth at this sampling rate; treat its numbers with care"
+            "stiff or not smooth at this sampling rate; treat its numbers with care, "
+            f"or run the study with discover(n_substeps={2 * engine.n_substeps}) "
+            f"(command line: --substeps {2 * engine.n_substeps})"
         )
     return None
 
