@@ -851,7 +851,14 @@ def _refit_without(
         "assumed": assumed_model,
         "extended": build_extended(refit_e) if e.slots else assumed_model,
     }
-    return reduced, models, refit_a.converged and refit_e.converged
+    return reduced, models, _settled(refit_a) and _settled(refit_e)
+
+
+def _settled(fit) -> bool:
+    """A held-out refit good enough for a free-run RMSE: Gauss-Newton
+    stopped at its tolerance. Its trajectory need not join to 1e-6 (the
+    free run uses only its initial state and parameters)."""
+    return bool(fit.ok and (fit.converged or fit.message.startswith("converged")))
 
 
 def _held_out_record(study, fits, build_extended, features, substeps):
