@@ -118,8 +118,8 @@ class MissingState:
     def sentence(self) -> str:
         return (
             f"{self.evidence}: the model error has memory that no function of the "
-            f"present states gives; a state the model does not have is likely, "
-            f"entering {self.equation}'"
+            f"present states gives; a state the model does not have (or an input "
+            f"it does not know) is likely, entering {self.equation}'"
         )
 
     def option(self) -> str:
