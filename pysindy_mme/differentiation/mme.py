@@ -221,9 +221,10 @@ class MME(MMEChecks, BaseDifferentiation):
     attributes describe the last call. Each call starts from scratch (the
     W search from the reference scale), so the result does not depend on
     what the estimator fitted before: the same inputs give bit-identical
-    results. The data may be in any units: the solver works internally in
-    units of (a power of two near) the noise standard deviation, and every
-    attribute is in the data's units.
+    results. The data may be in any units, each state in its own: the
+    solver works internally in one unit per state and per channel (about
+    the noise standard deviation, :mod:`~pysindy_mme.differentiation.units`),
+    and every attribute is in the data's units.
     Missing measurements (NaN) are allowed when calling :meth:`fit` directly
     (pysindy's own input checks reject NaN); every measured channel needs at
     least 2 observed values. Irregular sampling is fine.

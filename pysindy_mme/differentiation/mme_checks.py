@@ -179,7 +179,7 @@ class MMEChecks:
             Hpat = np.abs(jac).max(axis=0) > 0
         else:
             Hpat = measurement != 0
-        hidden = unobservable_states(model, x0, t, ug, Hpat)
+        hidden = unobservable_states(model, x0, t, ug, Hpat, unit=smoother.unit)
         if hidden:
             bad_err = [i for i in hidden if i in set(es.tolist())]
             what = (

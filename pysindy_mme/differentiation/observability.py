@@ -72,6 +72,7 @@ def unobservable_states(
     measurement_pattern,
     n_points: int = 40,
     seed: int = 0,
+    unit=None,
 ):
     """States that cannot influence any measurement (structural check).
 
@@ -82,6 +83,13 @@ def unobservable_states(
     initial trajectory and random perturbations of them, so that a
     derivative that happens to vanish on the initial guess (e.g.
     ``d(x1 x2)/dx1`` at ``x2 = 0``) is not mistaken for a structural zero.
+
+    ``unit`` (one per state, the solver's internal units) makes the
+    comparison within an equation unit-free: the entries of a row have
+    different units (``df_j/dx_i`` per unit of ``x_i``), so they are compared
+    as ``|df_j/dx_i| unit_i / unit_j``; a state in kN next to one in mm
+    would otherwise look disconnected. It also sets the perturbation of a
+    state that is zero along ``x``.
 
     Returns
     -------
@@ -103,14 +111,19 @@ def unobservable_states(
             else np.asarray(u)[idx]
         )
     scale = np.maximum(np.std(x, axis=0), 0.1 * np.max(np.abs(x), axis=0))
-    scale = np.where(scale > 0, scale, 1.0)
+    fill = 1.0 if unit is None else np.asarray(unit, dtype=float)
+    scale = np.where(scale > 0, scale, fill)
+    ratio = 1.0
+    if unit is not None:  # |df_j/dx_i| in units of unit_j / unit_i
+        unit = np.asarray(unit, dtype=float)
+        ratio = unit[None, None, :] / unit[None, :, None]
     pattern = np.zeros((n, n), dtype=bool)
     for trial in range(3):
         pts = xs if trial == 0 else xs + scale * rng.standard_normal(xs.shape)
         with np.errstate(all="ignore"):
             jac = model.jacobian(pts, ts, us)
         finite = np.isfinite(jac)
-        mag = np.where(finite, np.abs(jac), 0.0)
+        mag = np.where(finite, np.abs(jac) * ratio, 0.0)
         # Relative to the largest entry of the same equation (row): one
         # threshold for the whole Jacobian would erase a coupling of 1 next
         # to a stiff -1e11 elsewhere (a model in the wrong units), and the

@@ -41,11 +41,18 @@ because ``|det K| = det(M) / prod_k det(h_k W)`` with ``M`` the Hessian of
 Units: the KKT pivots mix ``R^-1`` (state rows) with ``h W^-1`` (multiplier
 rows), so in the data's own units a noise variance far from one (data in
 nanometres, say) would spread them over more decades than double precision
-holds, and a well-posed problem would look singular. The solver therefore
-works internally in units of ``s``, a power of two near the noise standard
-deviation: ``z = x / s``, ``y / s``, ``R / s^2``, ``f(s z) / s``,
-``g(s z) / s``, ``W s^2``. A power of two makes the change of units exact in
-floating point; everything public is in the user's units.
+holds, and a well-posed problem would look singular; states of very
+different scales (a displacement of 1e-3 m next to a force of 50 N) would do
+the same to each other, and finite-difference steps, the merit function and
+the convergence tests would weigh them by their units. The solver therefore
+works internally in one unit per state, ``S = diag(s)``, and one per
+measured channel, ``Sy = diag(sy)`` (:mod:`.units`: ``sy`` the noise
+standard deviations, ``s`` what the channels and the model give each
+state): ``z = S^-1 x``, ``Sy^-1 y``, ``Sy^-1 R Sy^-1``, ``S^-1 f(S z)``,
+``Sy^-1 g(S z)``, ``Sy^-1 C S``, ``S_e W S_e`` (``S_e`` the error states'
+units). The units change with the user's units exactly as the states and
+channels do, so the internal problem, and every answer, is the same in any
+unit system; everything public is in the user's units.
 
 Output error is the same problem with the dynamics as hard constraints (no
 model error, ``q = 0``: ``S_k = 0`` in the KKT system) and global parameters
@@ -66,12 +73,13 @@ import dataclasses
 import numpy as np
 
 from ..core.integrate import InputSignal, rk4_flow
+from ..core.model import rowwise_jacobian
 from ..exceptions import DivergenceError
 from .gauss_newton import GaussNewton
 from .kkt import CHUNK, BandedKKT, equilibrated_inverse, solve_reduced
 from .observability import unobservable_directions
 from .records import Linearization, SmootherResult
-from .units import Dynamics, internal_unit
+from .units import Dynamics, channel_units, internal_unit, state_units
 
 # A KKT pivot below this fraction of the largest one triggers the
 # observability check (see MMESmoother._kkt_step).
@@ -196,11 +204,14 @@ class MMESmoother(GaussNewton):
 
     Attributes
     ----------
-    unit : float
-        The internal unit ``s`` (:func:`internal_unit`). ``y``, ``R``,
+    unit : ndarray (n,)
+        Each state's internal unit (:func:`.units.state_units`, from the
+        noise and the starting trajectory: ``x_init`` or the data).
+    channel_unit : ndarray (m,)
+        Each measured channel's internal unit, its noise sd. ``y``, ``R``,
         ``model``, :meth:`initial_guess` and everything :meth:`solve` takes
         and returns are in the user's units; the underscored internals
-        (``Rinv``, linearisations, KKT) are in units of ``s``.
+        (``Rinv``, linearisations, KKT) are in the internal units.
     """
 
     # Intervals integrated per vectorised block (see kkt.CHUNK).
@@ -251,40 +262,45 @@ class MMESmoother(GaussNewton):
         self.mask = ~np.isnan(self.y)
         self.n_obs = int(self.mask.sum())
         self.R = np.asarray(R, dtype=float)
-        # Internal units (see the module docstring): a linear measurement
-        # y = C x is unit-free; g and f are wrapped.
-        s = self.unit = internal_unit(self.R)
+        self.x_init = None if x_init is None else np.asarray(x_init, dtype=float)
+        self.theta_init = (
+            np.zeros(int(getattr(model, "n_params", 0)))
+            if theta_init is None
+            else np.asarray(theta_init, float)
+        )
+        self.C = None if callable(measurement) else np.asarray(measurement, float)
+        # Internal units (see the module docstring), set from the starting
+        # trajectory: one per channel (its noise sd), one per state.
+        sy = self.channel_unit = channel_units(self.R)
+        s = self.unit = self._state_units(measurement, measurement_jacobian)
         self._f = Dynamics(model, s)
         self.p = self._f.p
-        self.theta_init = (
-            np.zeros(self.p) if theta_init is None else np.asarray(theta_init, float)
-        )
         M = (
             np.zeros((self.m, self.p))
             if measurement_offsets is None
             else measurement_offsets
         )
-        self._M = np.asarray(M, dtype=float) / s
+        self._M = np.asarray(M, dtype=float) / sy[:, None]
         self.theta_bounds = None
         if theta_bounds is not None:
             self.theta_bounds = np.asarray(theta_bounds, dtype=float).reshape(self.p, 2)
-        self._y0 = np.where(self.mask, self.y / s, 0.0)
+        self._y0 = np.where(self.mask, self.y / sy, 0.0)
         if callable(measurement):
-            self.C = None
-            self._g = (lambda z: measurement(s * z) / s) if s != 1.0 else measurement
+            self._g = lambda z: measurement(z * s) / sy
             self._g_jac = None
             if measurement_jacobian is not None:
-                self._g_jac = (
-                    (lambda z: measurement_jacobian(s * z))
-                    if s != 1.0
-                    else measurement_jacobian
+                # Sy^-1 H(S z) S
+                self._g_jac = lambda z: (
+                    np.asarray(measurement_jacobian(z * s), dtype=float).reshape(
+                        self.N, self.m, self.n
+                    )
+                    * (s[None, None, :] / sy[None, :, None])
                 )
         else:
-            self.C = np.asarray(measurement, dtype=float)
-        self._set_noise(self.R / s**2)
+            self._C = self.C * (s[None, :] / sy[:, None])
+        self._set_noise(self.R / np.outer(sy, sy))
         self._E = np.zeros((self.n, self.q))  # columns of E: the error states
         self._E[self.es, np.arange(self.q)] = 1.0
-        self.x_init = None if x_init is None else np.asarray(x_init, dtype=float)
         # Names of the states in diagnostics (default x0, x1, ...).
         self.state_labels = None
         self._scale = None
@@ -312,6 +328,48 @@ class MMESmoother(GaussNewton):
             self.Rinv[rows] = block
             self._logdetR += rows.sum() * np.linalg.slogdet(sub)[1]
 
+    def _state_units(self, measurement, measurement_jacobian):
+        """Each state's unit (:func:`.units.state_units`) from the starting
+        trajectory (:meth:`initial_guess`: ``x_init`` or the data)."""
+        x = np.nan_to_num(self.initial_guess()[0], posinf=0.0, neginf=0.0)
+        fallback = internal_unit(self.R)
+        if self.C is not None:
+            H = self.C
+        else:
+            # the measurement's Jacobian at a sample of the trajectory, by
+            # differences in provisional units (each state's RMS along it)
+            rows = np.unique(np.linspace(0, self.N - 1, min(200, self.N)).astype(int))
+            rms = np.sqrt(np.mean(x[rows] ** 2, axis=0))
+            prov = np.where(rms > 0, rms, fallback)
+            try:
+                with np.errstate(all="ignore"):
+                    if measurement_jacobian is not None:
+                        H = measurement_jacobian(x)
+                        H = np.asarray(H, float).reshape(self.N, self.m, self.n)
+                    else:
+                        H = (
+                            rowwise_jacobian(
+                                lambda z: measurement(z * prov),
+                                x[rows] / prov,
+                                scale=1.0,
+                            )
+                            / prov[None, None, :]
+                        )
+            except Exception:  # a measurement that fails here fails its checks
+                H = np.zeros((self.m, self.n))
+            H = np.where(np.isfinite(H), H, 0.0)
+        return state_units(
+            self.model,
+            x,
+            self.t,
+            self.inputs.grid(),
+            self.theta_init,
+            H,
+            self.channel_unit,
+            self.h,
+            fallback,
+        )
+
     def u_grid(self):
         """Inputs on the sample grid (or None)."""
         return self.inputs.grid()
@@ -319,7 +377,7 @@ class MMESmoother(GaussNewton):
     def _measure(self, z, theta=None):
         """``g(z) + M theta`` on the whole trajectory (internal units)."""
         if self.C is not None:
-            out = z @ self.C.T
+            out = z @ self._C.T
         else:
             out = np.asarray(self._g(z), dtype=float).reshape(self.N, self.m)
         if self.p and theta is not None:
@@ -327,9 +385,9 @@ class MMESmoother(GaussNewton):
         return out
 
     def measurement_jacobian(self, x):
-        """``dg/dx`` (unit-free) at internal-unit ``x``: (m, n) or (N, m, n)."""
+        """``dg/dz`` in internal units at internal-unit ``x``: (m, n) or (N, m, n)."""
         if self.C is not None:
-            return self.C
+            return self._C
         if self._g_jac is not None:
             return np.asarray(self._g_jac(x), dtype=float).reshape(
                 self.N, self.m, self.n
@@ -637,35 +695,40 @@ class MMESmoother(GaussNewton):
             W = W[0, 0] * np.eye(self.q)
         if not self.q:
             W = np.zeros((0, 0))
-        s = self.unit
+        s, sy, se = self.unit, self.channel_unit, self.unit[self.es]
         if start is not None and start._lin is not None:
             lin = start._lin
         else:
             x, d = (start.x, start.d) if start is not None else self.initial_guess()
             theta = start.theta if start is not None and self.p else self.theta_init
-            lin = self.linearize(x / s, d / s, self.project(theta))
-        res = self._solve(W * s**2, lin)
+            lin = self.linearize(x / s, d / se, self.project(theta))
+        res = self._solve(W * np.outer(se, se), lin)
         # Back to the user's units. J is unit-free; the multipliers (of J / 2
         # against defects in x) scale as 1 / s; the density of the N_obs
-        # observations given the n free initial states as s^-(N_obs - n),
-        # hence |det K| as s^-2n (flat prior on x_0, see the docstring).
-        log_s = float(np.log(s))
+        # observations given the n free initial states as 1 / (the product
+        # of the observed values' sy) times det(S) per free initial state,
+        # hence |det K| as det(S)^-2 per record (flat prior on x_0, see the
+        # docstring: the K of the user's units is diag(S^-1, S) K diag(S^-1,
+        # S), the last multiplier block of each record a dummy).
+        log_det_s = float(np.sum(np.log(s)))
+        log_sy = float(np.sum(self.mask.sum(axis=0) * np.log(sy)))
         # one free initial state per record (the solver's likelihood counts
         # one; the others' constant is added here, the same for every W)
-        n_x0 = self.n * self.n_records
+        records = self.n_records
         extra = (self.n_records - 1) * self.n * np.log(2.0 * np.pi)
+        defects = res._lin.defects if res._lin is not None else np.zeros((0, self.n))
         return dataclasses.replace(
             res,
             W=W,
             x=res.x * s,
-            d=res.d * s,
+            d=res.d * se,
             lam=res.lam / s,
-            residuals=res.residuals * s,
-            logdet=res.logdet - 2.0 * n_x0 * log_s,
+            residuals=res.residuals * sy,
+            logdet=res.logdet - 2.0 * records * log_det_s,
             neg2_log_likelihood=res.neg2_log_likelihood
             - extra
-            + 2.0 * (self.n_obs - n_x0) * log_s,
-            max_defect=res.max_defect * s,
+            + 2.0 * (log_sy - records * log_det_s),
+            max_defect=float(np.max(np.abs(defects * s), initial=0.0)),
         )
 
     def start_from(self, x, theta, d=None) -> SmootherResult:

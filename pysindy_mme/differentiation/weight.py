@@ -53,14 +53,23 @@ class WSearch:
 
 
 def reference_W(smoother) -> float:
-    """A scale for W: mean sample interval / mean noise variance.
+    """A scale for W: mean sample interval / (error states' unit)^2.
 
-    Per interval the cost weighs ``h W d^2`` against ``r^2 / R``, so ``h / R``
-    is the weight at which a model error of one measurement unit per time unit
-    costs as much as a one-sigma residual. It does not grow with the record
-    length. The search range is ``10**+-12`` times this reference.
+    Per interval the cost weighs ``h W d^2`` against ``r^2 / R``, so in the
+    solver's units (:mod:`.units`: a residual of one unit is a one-sigma
+    residual) ``h`` is the weight at which a model error of one unit per time
+    unit costs as much as a one-sigma residual; in the user's units that is
+    ``h / s_e^2``, ``s_e`` the error states' unit (their geometric mean). It
+    does not grow with the record length, and it changes with the units of
+    the error states exactly as the W that meets the criterion does, so the
+    search (and its result) is the same in any units. (``h / R`` in the
+    data's units was not: a model error in a state other than the measured
+    one, in other units, put the answer outside the range.) The search range
+    is ``10**+-12`` times this reference.
     """
-    return float(np.mean(smoother.h)) / float(np.mean(np.diag(smoother.R)))
+    se = np.asarray(smoother.unit, dtype=float)[smoother.es]
+    # R in the solver's units has a unit diagonal (each channel's unit is its sd)
+    return float(np.mean(smoother.h)) / float(np.exp(2.0 * np.mean(np.log(se))))
 
 
 def channel_ratios(res, smoother) -> np.ndarray:

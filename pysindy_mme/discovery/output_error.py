@@ -307,7 +307,7 @@ class OutputErrorModel:
         self.noise_inflation = None
 
     # ----------------------------------------------------------------- setup
-    def _solver(self, slots, theta0, max_iter, tol):
+    def _solver(self, slots, theta0, max_iter, tol, x_start=None):
         model = ParametricModel(
             self.base,
             self.n_states,
@@ -336,6 +336,9 @@ class OutputErrorModel:
             measurement_offsets=offsets,
             theta_bounds=self._theta_bounds(model.n_params),
             starts=self.starts,
+            # the internal units of the states the data do not measure come
+            # from the starting trajectory (and the model at theta0)
+            x_init=x_start,
         )
 
     def _theta_bounds(self, p):
@@ -375,14 +378,19 @@ class OutputErrorModel:
             theta0[: self.n_physical] = np.clip(
                 theta0[: self.n_physical], self.bounds[:, 0], self.bounds[:, 1]
             )
-        solver = self._solver(slots, theta0, max_iter, tol)
+        solver = self._solver(slots, theta0, max_iter, tol, x_start)
         try:
             res = solver.solve(None, solver.start_from(x_start, theta0))
         except (DivergenceError, np.linalg.LinAlgError, FloatingPointError) as exc:
             return self._failed(slots, theta0, x_start, f"model diverged: {exc}")
-        bounded = np.all(np.isfinite(res.x)) and res.max_defect <= 1e-6 * max(
-            1.0, float(np.max(np.abs(res.x)))
-        )
+        # Joined: every defect below 1e-6 of the trajectory's scale, both in
+        # the solver's units (each state's own, about its noise sd): in the
+        # user's units one state's defect would be judged by another's scale
+        # (a velocity of 1e2 mm/s would excuse a defect of 1e-4 m).
+        z = res._lin.x
+        bounded = np.all(np.isfinite(res.x)) and float(
+            np.max(np.abs(res._lin.defects), initial=0.0)
+        ) <= 1e-6 * max(1.0, float(np.max(np.abs(z), initial=0.0)))
         # a fit during which some trial made the model blow up is not called
         # converged, even when the line search stepped back to a finite point
         converged = bool(res.converged and bounded and not res.nonfinite_trials)
@@ -511,21 +519,26 @@ class OutputErrorModel:
         ``Phi_fine - Phi``; one Gauss-Newton step of the finer problem from
         this solution (the factorised KKT system of the fit, one bordered
         solve) gives the change of the parameters and of the trajectory.
-        Returns ``(dtheta, largest trajectory change in noise standard
-        deviations)``; NaN when the fit has no KKT system.
+        Returns ``(dtheta, change)``: ``change`` is the largest change of the
+        fitted measurements in noise standard deviations or the predicted
+        change of the cost in units of chi-square, whichever is larger (the
+        refit's own tests are half a standard error and one unit of
+        chi-square); NaN when the fit has no KKT system.
         """
         p = fit.theta.size
         if fit._state is None:
             return np.full(p, np.nan), np.nan
         solver, res, (fac, _, _, E, D) = self._kkt_at(fit)
         finer = self.with_substeps(2 * self.n_substeps)._solver(
-            fit.slots, fit.theta, 1, 1e-9
+            fit.slots, fit.theta, 1, 1e-9, fit.x
         )
-        x = res.x / solver.unit
         d = np.zeros((solver.N - 1, 0))
         with np.errstate(all="ignore"):
-            change = finer.flow(x, d, res.theta, jacobian=False) - solver.flow(
-                x, d, res.theta, jacobian=False
+            # each solver's flow in its own units, the change in the fit's
+            change = finer.flow(
+                res.x / finer.unit, d, res.theta, jacobian=False
+            ) * finer.unit / solver.unit - solver.flow(
+                res.x / solver.unit, d, res.theta, jacobian=False
             )
         if not np.all(np.isfinite(change)):
             return np.full(p, np.inf), np.inf
@@ -535,8 +548,20 @@ class OutputErrorModel:
         sol = solve_reduced(fac, E, D, rhs, np.zeros(E.shape[2]))
         dtheta = np.zeros(p)  # a parameter held on its bound stays there
         dtheta[free] = sol.dtheta
-        sd = np.sqrt(np.mean(np.diag(self.R))) / solver.unit
-        return dtheta, float(np.max(np.abs(sol.z[:, : solver.n]))) / sd
+        # How far the fit moves, in any units the same number: the change of
+        # the fitted measurements in the solver's channel units (each
+        # channel's noise sd), or the change of the cost it predicts (in
+        # units of chi-square, to second order), whichever is larger.
+        # (The largest change of any state over the mean noise sd was not
+        # unit-free: it compared a velocity in m/s with a noise in m.)
+        dx, H = sol.z[:, : solver.n], res._lin.H
+        dy = dx @ H.T if H.ndim == 2 else np.einsum("kai,ki->ka", H, dx)
+        M = solver._M[:, free]
+        if M.shape[1]:
+            dy = dy + M @ sol.dtheta
+        Rdy = np.einsum("kab,kb->ka", solver.Rinv, dy)
+        dcost = float(np.sum(Rdy * (dy - 2.0 * res._lin.r)))
+        return dtheta, max(float(np.max(np.abs(dy), initial=0.0)), abs(dcost))
 
     # ------------------------------------------------------------ statistics
     def _kkt_at(self, fit):
@@ -580,7 +605,7 @@ class OutputErrorModel:
         E, D, free = self._free_border(fit, E, D)
         sol = solve_reduced(fac, E, D, b, np.zeros((E.shape[2], n)))
         s2 = fit.residual_variance * fit.inflation
-        x0_cov = sol.z[0, :n, :] * s2 * unit**2  # internal units -> user units
+        x0_cov = sol.z[0, :n, :] * s2 * np.outer(unit, unit)  # to user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
         if not p:
             return np.zeros((0, 0)), x0_cov
@@ -624,11 +649,21 @@ class OutputErrorModel:
         group = max(1, _SCORE_ELEMENTS // max(N * n, 1))
         num = np.zeros(k_c)
         den = np.zeros(k_c)
+        scale = np.ones(k_c)
         for lo in range(0, k_c, group):
             part = candidates[lo : lo + group]
             sens, finite = self._candidate_sensitivities(solver, res, part)
+            # Each candidate's forcing at unit size: the unit of a
+            # coefficient (of y^3 in metres or in millimetres) is the user's
+            # choice, and the test below of a response lost to rounding must
+            # not depend on it (num / size and den / size^2 leave the score
+            # as it is; the step is scaled back).
+            with np.errstate(all="ignore"):
+                size = np.sqrt(np.mean(sens**2, axis=(0, 1)))
+            size = np.where(np.isfinite(size) & (size > 0), size, 1.0)
+            scale[lo : lo + len(part)] = size
             rhs = np.zeros((N, 2 * n, len(part)))
-            rhs[:-1, n:] = -sens
+            rhs[:-1, n:] = -sens / size
             sol = solve_reduced(fac, E, D, rhs, np.zeros((E.shape[2], len(part))))
             dx = sol.z[:, :n]  # (N, n, G)
             H = lin.H
@@ -654,7 +689,7 @@ class OutputErrorModel:
             )
             dssr = np.where(usable, num**2 / np.where(usable, den, 1.0), 0.0)
             f_values = dssr / np.maximum(ssr - dssr, 1e-300) * dof
-            step = np.where(usable, num / np.where(usable, den, 1.0), 0.0)
+            step = np.where(usable, num / np.where(usable, den, 1.0), 0.0) / scale
         return np.nan_to_num(f_values), np.nan_to_num(step)
 
     def _candidate_sensitivities(self, solver, res, candidates):
@@ -676,7 +711,7 @@ class OutputErrorModel:
             out = np.zeros((z.shape[0], n, len(candidates)))
             for j, (state, col) in enumerate(candidates):
                 out[:, state, j] = phi[:, pos[col]]
-            return out / unit
+            return out / unit[:, None]
 
         x_int = res.x / unit
         d = np.zeros((solver.N - 1, 0))

@@ -26,9 +26,7 @@ from pysindy_mme import discover
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import hysteretic_oscillator
 
-HELD_OUT = dict(
-    m=1.6, c=7.0, k=3.5e4, alpha=6.5e4, beta=1.4e3, gamma=0.65, delta=-0.85
-)
+HELD_OUT = dict(m=1.6, c=7.0, k=3.5e4, alpha=6.5e4, beta=1.4e3, gamma=0.65, delta=-0.85)
 RECORDING = dict(u_rms=35.0, band=(4.0, 120.0), n_samples=8192, noise_share=0.05)
 SEEDS = range(100, 110)
 LAW = {
