@@ -486,8 +486,9 @@ def step_size_check(
     result depends on the integrator (a stiff or non-smooth model): said so.
     The refit is skipped when its linearised prediction
     (:meth:`OutputErrorModel.integrator_effect`) moves no parameter by a
-    tenth of its standard error and the trajectory by less than a tenth of
-    the noise. ``names`` (one per entry of ``fit.theta``, offsets may be
+    tenth of its standard error, and neither the fitted measurements by a
+    tenth of the noise nor the cost by a tenth of a chi-square unit (both
+    unit-free, so the decision does not depend on the data's units). ``names`` (one per entry of ``fit.theta``, offsets may be
     left out) lets the note name the quantities that moved most.
     """
     dtheta, dx = engine.integrator_effect(fit)
