@@ -141,6 +141,18 @@ def box_qp(S, g, lower, upper):
     return v, active
 
 
+class _Scaled:
+    """``func(scale * z) / divide``: a measurement function on scaled states (a
+    class, not a closure: a fit holding it pickles when the function does)."""
+
+    def __init__(self, func, scale, divide):
+        self.func, self.scale, self.divide = func, scale, divide
+
+    def __call__(self, z):
+        out = self.func(self.scale * z)
+        return out if self.divide == 1.0 else out / self.divide
+
+
 class MMESmoother(GaussNewton):
     """Direct transcription of MME / output error on one record (inputs checked).
 
@@ -271,11 +283,11 @@ class MMESmoother(GaussNewton):
         self._y0 = np.where(self.mask, self.y / s, 0.0)
         if callable(measurement):
             self.C = None
-            self._g = (lambda z: measurement(s * z) / s) if s != 1.0 else measurement
+            self._g = _Scaled(measurement, s, s) if s != 1.0 else measurement
             self._g_jac = None
             if measurement_jacobian is not None:
                 self._g_jac = (
-                    (lambda z: measurement_jacobian(s * z))
+                    _Scaled(measurement_jacobian, s, 1.0)
                     if s != 1.0
                     else measurement_jacobian
                 )
