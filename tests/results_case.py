@@ -16,7 +16,14 @@ import pysindy as ps
 from pysindy_mme import discover
 from pysindy_mme.systems import duffing
 
-__all__ = ["duffing_assumed", "duffing_grey", "decay", "study", "N_SAMPLES"]
+__all__ = [
+    "duffing_assumed",
+    "duffing_true",
+    "duffing_grey",
+    "decay",
+    "study",
+    "N_SAMPLES",
+]
 
 N_SAMPLES = 300
 
@@ -24,6 +31,11 @@ N_SAMPLES = 300
 def duffing_assumed(x, t):
     """The linear damped oscillator (the Duffing system's assumed model)."""
     return np.column_stack([x[:, 1], -x[:, 0] - 0.1 * x[:, 1]])
+
+
+def duffing_true(x, t):
+    """The Duffing oscillator itself (nothing left to find)."""
+    return np.column_stack([x[:, 1], -x[:, 0] - 0.1 * x[:, 1] - x[:, 0] ** 3])
 
 
 def duffing_grey(x, t, u, p):
@@ -36,8 +48,9 @@ def decay(x, t):
     return -x[:, 0]
 
 
-def study(grey: bool = False):
-    """``discover`` on the first ``N_SAMPLES`` samples of seed 0."""
+def study(grey: bool = False, model=None):
+    """``discover`` on the first ``N_SAMPLES`` samples of seed 0 (``model``:
+    another assumed model ``f(x, t)``)."""
     system = duffing()
     data = system.measure(0)
     options = dict(
@@ -51,5 +64,5 @@ def study(grey: bool = False):
     if grey:
         options.update(assumed_model=duffing_grey, parameters={"k": (1.1, 0.0, None)})
     else:
-        options.update(assumed_model=duffing_assumed)
+        options.update(assumed_model=model or duffing_assumed)
     return discover(data.y[:N_SAMPLES], data.t[:N_SAMPLES], **options)

@@ -376,15 +376,11 @@ class Discovery:
         pandas.DataFrame
         """
         from ..core.tables import require_pandas
-        from .summary import TABLES, records
+        from .summary import TABLES, columns, records
 
         rows = records(self, table)
         pd = require_pandas()
-        frame = pd.DataFrame(rows)
-        index = TABLES[table]
-        if not rows:
-            return pd.DataFrame(columns=index).set_index(index)
-        return frame.set_index(index)
+        return pd.DataFrame(rows, columns=columns(table)).set_index(TABLES[table])
 
     def save(self, path) -> None:
         """Write the result to ``path`` (a ``.npz`` file, no pickle inside).

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core.tables import SimpleTable, Summary, p_value, sig
 
-__all__ = ["discovery_summary", "records", "TABLES"]
+__all__ = ["discovery_summary", "records", "columns", "TABLES"]
 
 #: what :func:`records` (and ``Discovery.to_frame``) can lay out, with the
 #: columns that index each table
@@ -183,6 +183,33 @@ def discovery_summary(res) -> Summary:
     ]
     notes += [f"Warning: {w}" for w in res.warnings]
     return Summary("pysindy-mme discovery", tables, notes)
+
+
+def columns(table: str) -> list:
+    """The columns of :func:`records`' rows for ``table`` (also when empty)."""
+    from dataclasses import fields
+
+    from .result import ParameterEstimate, TermEstimate
+
+    if table == "terms":
+        return [f.name for f in fields(TermEstimate)]
+    if table == "parameters":
+        return [f.name for f in fields(ParameterEstimate)] + ["change"]
+    if table == "gain":
+        return list(_GAIN_COLUMNS)
+    raise ValueError(f"table must be one of {sorted(TABLES)}, got {table!r}")
+
+
+_GAIN_COLUMNS = [
+    "channel",
+    "rmse_assumed",
+    "rmse_extended",
+    "gain",
+    "noise_floor",
+    "validation_rmse_assumed",
+    "validation_rmse_extended",
+    "validation_gain",
+]
 
 
 def records(res, table: str) -> list:

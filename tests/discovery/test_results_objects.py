@@ -195,6 +195,25 @@ def test_frames_of_terms_parameters_and_gain(grey):
         grey.to_frame("coefficients")
 
 
+def test_a_study_without_terms_has_empty_tables_with_their_columns():
+    pd = pytest.importorskip("pandas")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = results_case.study(model=results_case.duffing_true)
+    assert res.conclusion == "consistent"
+    tables = html_tables(res._repr_html_())
+    assert tables["Identified terms (95% CI)"]["rows"] == []
+    terms = res.to_frame("terms")
+    assert isinstance(terms, pd.DataFrame) and terms.empty
+    assert list(terms.index.names) == ["state", "feature"]
+    assert "coefficient" in terms.columns
+    assert list(res.to_frame("parameters").columns)[:3] == [
+        "initial",
+        "assumed_fit",
+        "value",
+    ]
+
+
 def test_optional_dependencies_missing_say_how_to_install(plain, monkeypatch):
     import sys
 
