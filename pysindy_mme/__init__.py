@@ -16,6 +16,7 @@ from .exceptions import (
     DiscoveryWarning,
     DivergenceError,
     ExcludedFeaturesWarning,
+    NotSavedError,
     StepwiseCycleWarning,
 )
 from .feature_library import PhysicsLibrary, PowerLibrary
@@ -38,6 +39,7 @@ __all__ = [
     "DiscoveryWarning",
     "DivergenceError",
     "ExcludedFeaturesWarning",
+    "NotSavedError",
     "StepwiseCycleWarning",
 ]
 

@@ -11,6 +11,7 @@ __all__ = [
     "DiscoveryWarning",
     "StepwiseCycleWarning",
     "ExcludedFeaturesWarning",
+    "NotSavedError",
 ]
 
 
@@ -28,3 +29,13 @@ class StepwiseCycleWarning(UserWarning):
 
 class ExcludedFeaturesWarning(UserWarning):
     """Some library columns can never be selected (non-finite, constant, ...)."""
+
+
+class NotSavedError(AttributeError):
+    """A loaded result lacks what this needs: user code or a fitted estimator.
+
+    :meth:`Discovery.save <pysindy_mme.Discovery.save>` keeps numbers, not
+    code; the message names the missing piece and how to supply it. An
+    ``AttributeError``, so that ``getattr(result.mme, name, default)`` and
+    ``hasattr`` treat what was not saved as absent.
+    """

@@ -1,6 +1,8 @@
 """What the command line leaves in its output folder.
 
 ``report.txt`` (the printed report), ``discovery.json`` (its numbers),
+``discovery.npz`` (the whole result, reloadable with
+``pysindy_mme.Discovery.load``: :mod:`pysindy_mme.discovery.storage`),
 ``timeseries.csv`` (one row per sample: time, inputs, measurements, MME's
 state estimate and model error, both models' simulations) and the four
 figures of :func:`pysindy_mme.plotting.save_figures`.
@@ -65,7 +67,8 @@ def _write_csv(path: Path, columns: dict) -> None:
 
 
 def write_outputs(result, out, notes=(), x_true=None, d_true=None) -> list:
-    """Report, JSON, time series and figures into ``out``; returns the paths.
+    """Report, JSON, saved result, time series and figures into ``out``;
+    returns the paths.
 
     ``notes``: the command line's own warnings, kept in the JSON.
     """
@@ -78,6 +81,8 @@ def write_outputs(result, out, notes=(), x_true=None, d_true=None) -> list:
     summary["command_line_warnings"] = list(notes)
     (out / "discovery.json").write_text(json.dumps(summary, indent=2))
     written.append(out / "discovery.json")
+    result.save(out / "discovery.npz")
+    written.append(out / "discovery.npz")
     _write_csv(out / "timeseries.csv", timeseries_columns(result))
     written.append(out / "timeseries.csv")
     try:

@@ -28,7 +28,8 @@ t (shape (n_samples,)) and, with --inputs, u (n_samples, n_inputs):
   def f(x, t):
       return np.column_stack([x[:, 1], -x[:, 0] - 0.1 * x[:, 1]])
 
-Outputs (in --out): report.txt, discovery.json, timeseries.csv (time,
+Outputs (in --out): report.txt, discovery.json, discovery.npz (the result,
+reloadable in Python: pysindy_mme.Discovery.load), timeseries.csv (time,
 measurements, MME's estimated states and d(t), both models' simulations) and
 the figures states.png, model_error.png, gain.png, stepwise_history.png.
 Every message and what to do about it: docs/errors.md.

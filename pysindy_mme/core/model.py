@@ -112,12 +112,10 @@ class ModelFunction:
         if self._kind == "callable" and callable(own):
             return own()
         if self._kind == "predict":
-            return lambda x, t, u: np.asarray(
-                func.predict(x) if u is None else func.predict(x, u=u), dtype=float
-            ).reshape(x.shape)
+            return _PredictRates(func)
         if self._takes_u:
             return func
-        return lambda x, t, u: func(x, t)
+        return _WithoutInput(func)
 
     def check(self, x, t, u=None) -> np.ndarray:
         """Evaluate once and raise a clear error on a bad shape or value."""
@@ -138,6 +136,28 @@ class ModelFunction:
         ``2 n_states`` vectorised model evaluations.
         """
         return rowwise_jacobian(lambda z: self(z, t, u), x)
+
+
+class _PredictRates:
+    """``f(x, t, u)`` of a model with ``predict`` (a class, not a closure:
+    what holds it pickles when the model does)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def __call__(self, x, t, u):
+        out = self.model.predict(x) if u is None else self.model.predict(x, u=u)
+        return np.asarray(out, dtype=float).reshape(x.shape)
+
+
+class _WithoutInput:
+    """``f(x, t, u)`` of a model ``f(x, t)`` that takes no input."""
+
+    def __init__(self, func):
+        self.func = func
+
+    def __call__(self, x, t, u):
+        return self.func(x, t)
 
 
 def rowwise_jacobian(func, x, rel_step: float | None = None, scale=None) -> np.ndarray:

@@ -149,6 +149,32 @@ def box_qp(S, g, lower, upper):
     return v, active
 
 
+class _Scaled:
+    """``func(z * scale) / divide`` per column: a measurement function on the
+    solver's states (a class, not a closure: a fit holding it pickles when
+    the function does)."""
+
+    def __init__(self, func, scale, divide):
+        self.func, self.scale, self.divide = func, scale, divide
+
+    def __call__(self, z):
+        return self.func(z * self.scale) / self.divide
+
+
+class _ScaledJacobian:
+    """``Sy^-1 H(S z) S``: the measurement Jacobian on the solver's states."""
+
+    def __init__(self, jacobian, scale, divide, shape):
+        self.jacobian, self.scale, self.divide = jacobian, scale, divide
+        self.shape = shape
+
+    def __call__(self, z):
+        h = np.asarray(self.jacobian(z * self.scale), dtype=float)
+        return h.reshape(self.shape) * (
+            self.scale[None, None, :] / self.divide[None, :, None]
+        )
+
+
 class MMESmoother(GaussNewton):
     """Direct transcription of MME / output error on one record (inputs checked).
 
@@ -286,15 +312,12 @@ class MMESmoother(GaussNewton):
             self.theta_bounds = np.asarray(theta_bounds, dtype=float).reshape(self.p, 2)
         self._y0 = np.where(self.mask, self.y / sy, 0.0)
         if callable(measurement):
-            self._g = lambda z: measurement(z * s) / sy
+            self._g = _Scaled(measurement, s, sy)
             self._g_jac = None
             if measurement_jacobian is not None:
                 # Sy^-1 H(S z) S
-                self._g_jac = lambda z: (
-                    np.asarray(measurement_jacobian(z * s), dtype=float).reshape(
-                        self.N, self.m, self.n
-                    )
-                    * (s[None, None, :] / sy[None, :, None])
+                self._g_jac = _ScaledJacobian(
+                    measurement_jacobian, s, sy, (self.N, self.m, self.n)
                 )
         else:
             self._C = self.C * (s[None, :] / sy[:, None])

@@ -10,8 +10,10 @@ returning a small record the next one takes:
 5. measure the gain (``gain.py``).
 
 Arguments are checked in one place (``inputs.py``); the answer is a
-:class:`Discovery` (``result.py``) with its report (``report.py``) and the
-:class:`ExtendedModel` (``extended.py``).
+:class:`Discovery` (``result.py``) with its report (``report.py``), its
+tables (``summary.py``), its file (``storage.py``: ``save``/``load``) and
+the :class:`ExtendedModel` (``extended.py``; as sympy or Python source:
+``export.py``).
 """
 
 from ..exceptions import DiscoveryWarning

@@ -45,8 +45,33 @@ def _bare_assumed(assumed, n_states, n_inputs):
     if probe.shape == x.shape:
         return raw
     if n_states == 1 and probe.shape == (rows,):
-        return lambda x, t, u: raw(x, t, u).reshape(-1, 1)
+        return _Column(raw)
     return assumed
+
+
+class _Column:
+    """A one-state model's ``(n_rows,)`` answer as a column (not a closure:
+    what holds it pickles when the model does)."""
+
+    def __init__(self, raw):
+        self.raw = raw
+
+    def __call__(self, x, t, u=None):
+        return self.raw(x, t, u).reshape(-1, 1)
+
+
+class _Rates:
+    """:meth:`ExtendedModel.unchecked`: ``assumed(x, t, u) + Theta(z) C + b``."""
+
+    def __init__(self, assumed, features, coef, intercept):
+        self.assumed, self.features = assumed, features
+        self.coef, self.intercept = coef, intercept
+
+    def __call__(self, x, t, u=None):
+        if self.coef is None:
+            return self.assumed(x, t, u) + self.intercept
+        z = x if u is None else np.concatenate((x, u), axis=1)
+        return self.assumed(x, t, u) + self.features(z) @ self.coef + self.intercept
 
 
 def _format_terms(coefs, names, digits) -> str:
@@ -143,6 +168,7 @@ class ExtendedModel:
         self.active_ = np.flatnonzero(np.any(self.correction_coef_ != 0, axis=0))
         if z_reference is None:
             z_reference = np.random.default_rng(0).uniform(-2, 2, (64, n_vars))
+        self._z_reference = np.asarray(z_reference, dtype=float)
         self._features = SelectedFeatures(
             feature_library,
             self.state_names + self.input_names,
@@ -213,15 +239,9 @@ class ExtendedModel:
         assumed = _bare_assumed(self._assumed, self.n_states, self.n_inputs)
         b = self.correction_intercept_.copy()
         if not self.active_.size:
-            return lambda x, t, u=None: assumed(x, t, u) + b
+            return _Rates(assumed, None, None, b)
         coef = np.ascontiguousarray(self.correction_coef_[:, self.active_].T)
-        features = self._features
-
-        def rhs(x, t, u=None):
-            z = x if u is None else np.concatenate((x, u), axis=1)
-            return assumed(x, t, u) + features(z) @ coef + b
-
-        return rhs
+        return _Rates(assumed, self._features, coef, b)
 
     def simulate(
         self,
@@ -327,6 +347,49 @@ class ExtendedModel:
             else:
                 out.append(f"[assumed] {assumed}")
         return out
+
+    def to_sympy(self) -> list:
+        """The right-hand sides as sympy expressions (needs sympy).
+
+        One expression per state, in the order of ``state_names``, in the
+        symbols ``sympy.Symbol(name)`` of the states and inputs and
+        ``sympy.Symbol("t")``. The assumed part is the user's code: an
+        undefined function ``f_<state>(states, inputs, t)``, or the
+        expression parsed from ``assumed_equations`` when given (``^`` is a
+        power). Correction terms that are products of powers are exact
+        (``-1.008*x1**3``); others are read from their names (``sign(v)``)
+        or shown as an undefined ``phi_<library column>``
+        (:mod:`pysindy_mme.discovery.export`).
+
+        Returns
+        -------
+        list of sympy.Expr
+        """
+        from .export import to_sympy
+
+        return to_sympy(self)
+
+    def to_python(self) -> str:
+        """Source of a standalone module that simulates this model (numpy only).
+
+        The module defines ``correction(x, u=None)``, ``rates(assumed_model,
+        x, t, u=None)`` and ``simulate(assumed_model, x0, t, u=None,
+        substeps=SUBSTEPS, input_hold="linear")``: the fixed-step RK4 of
+        :meth:`simulate` with ``method="rk4"``, to rounding. The assumed
+        model cannot be exported (it is the user's code): pass it in, as
+        ``discover`` took it; the fitted grey-box parameters (``PARAMETERS``)
+        and hidden states (``HIDDEN``) are built in. Write the text to a
+        ``.py`` file and import it, or ``exec`` it.
+
+        Raises
+        ------
+        ValueError
+            A correction term is library code (not a product of powers its
+            name spells), named in the message.
+        """
+        from .export import to_python
+
+        return to_python(self)
 
     def print(self, precision: int = 4, **kwargs) -> None:
         """Print the equations like ``pysindy.SINDy.print``."""

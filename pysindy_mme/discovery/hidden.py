@@ -139,18 +139,32 @@ def add_hidden_states(model, n_states, hidden_states, state_names=None, grey=Fal
                 "with parameters, assumed_model must be a callable f(x, t, u, p)"
             )
 
-        def augmented_grey(x, t, u, p):
-            x = np.asarray(x, dtype=float)
-            dx = np.asarray(model(x[:, :n], t, u, p), dtype=float).reshape(
-                x.shape[0], n
-            )
-            return hidden.augment(dx, x)
+        return _AugmentedGrey(model, hidden), hidden
+    return _Augmented(ModelFunction(model, n), hidden), hidden
 
-        return augmented_grey, hidden
-    inner = ModelFunction(model, n)
 
-    def augmented(x, t, u=None):
+class _Augmented:
+    """``f(x, t, u)`` on ``[x, hidden]``: the user's model on ``x``, each
+    hidden state added to its equation (a class, not a closure: a result
+    holding it pickles when the user's model does)."""
+
+    def __init__(self, inner, hidden: HiddenStates):
+        self.inner, self.hidden = inner, hidden
+
+    def __call__(self, x, t, u=None):
         x = np.asarray(x, dtype=float)
-        return hidden.augment(inner(x[:, :n], t, u), x)
+        n = self.hidden.n_visible
+        return self.hidden.augment(self.inner(x[:, :n], t, u), x)
 
-    return augmented, hidden
+
+class _AugmentedGrey:
+    """:class:`_Augmented` for a grey-box ``f(x, t, u, p)``."""
+
+    def __init__(self, model, hidden: HiddenStates):
+        self.model, self.hidden = model, hidden
+
+    def __call__(self, x, t, u, p):
+        x = np.asarray(x, dtype=float)
+        n = self.hidden.n_visible
+        dx = np.asarray(self.model(x[:, :n], t, u, p), dtype=float)
+        return self.hidden.augment(dx.reshape(x.shape[0], n), x)

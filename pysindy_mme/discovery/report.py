@@ -98,10 +98,7 @@ def _clipped_lines(res) -> list:
 def _what_is_wrong(res) -> list:
     out = ["1. What the assumed model gets wrong", "-" * 36]
     g = res.gain
-    measure = res.study.measurement
-    x = res.assumed_simulation
-    y_hat = measure(x) if callable(measure) else x @ np.asarray(measure).T
-    resid = res.y - y_hat
+    resid = res.y - res.assumed_output
     rows = []
     for j, name in enumerate(res.channel_names):
         r = resid[:, j]
@@ -291,18 +288,25 @@ def _cause(res) -> list:
             "F-test of the extended against the assumed model: p = "
             f"{p_value(res.correction_p_value)}."
         )
-    summary = getattr(res.optimizer, "summary", None)
-    if callable(summary):
+    text = optimizer_summary(res)
+    if text is not None:
         out += ["", "Stepwise regression of d(t) (ANOVA per error state):"]
-        try:
-            text = summary(
-                feature_names=res.library_feature_names,
-                target_names=[res.state_names[i] for i in res.error_states],
-            )
-        except TypeError:
-            text = summary()
         out.append(str(text).rstrip())
     return out + [""]
+
+
+def optimizer_summary(res):
+    """The optimizer's own summary of the regression of ``d(t)``, or None."""
+    summary = getattr(res.optimizer, "summary", None)
+    if not callable(summary):
+        return None
+    try:
+        return summary(
+            feature_names=res.library_feature_names,
+            target_names=[res.state_names[i] for i in res.error_states],
+        )
+    except TypeError:
+        return summary()
 
 
 def _gain(res) -> list:

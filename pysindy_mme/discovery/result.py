@@ -317,11 +317,105 @@ class Discovery:
     def found_correction(self) -> bool:
         return any(self.terms.values())
 
+    @property
+    def assumed_output(self) -> np.ndarray:
+        """The assumed model's free run as the sensors see it (``(N, m)``:
+        the measurement applied to :attr:`assumed_simulation`, no offsets)."""
+        measure = self.study.measurement
+        x = self.assumed_simulation
+        return measure(x) if callable(measure) else x @ np.asarray(measure).T
+
+    @property
+    def extended_correction(self) -> np.ndarray:
+        """The extended model's correction along its own free run (``(N, n)``;
+        along MME's estimate where that run is not finite): what the model
+        error figure draws against ``d(t)``."""
+        x = self.extended_simulation
+        if x is None or not np.all(np.isfinite(x)):
+            x = self.mme.smoothed_x_
+        with np.errstate(all="ignore"):
+            return np.asarray(self.extended_model.correction(x, self.u), dtype=float)
+
     def __str__(self) -> str:
         return format_discovery(self)
 
-    def summary(self) -> str:
-        return str(self)
+    def summary(self):
+        """The study in tables, in statsmodels' style.
+
+        Returns
+        -------
+        Summary
+            ``str()`` gives text, ``as_html()`` HTML (a notebook shows it),
+            ``as_latex()`` LaTeX; ``tables`` are
+            :class:`~pysindy_mme.core.tables.SimpleTable` of the values
+            (``table.to_frame()`` with pandas). ``print(result)`` remains the
+            full report.
+        """
+        from .summary import discovery_summary
+
+        return discovery_summary(self)
+
+    def _repr_html_(self) -> str:
+        return self.summary().as_html()
+
+    def to_frame(self, table: str = "terms"):
+        """A table of the result as a ``pandas.DataFrame`` (needs pandas).
+
+        Parameters
+        ----------
+        table : {"terms", "parameters", "gain"}
+            ``"terms"``: one row per kept term, indexed by ``(state,
+            feature)``, the columns of :class:`TermEstimate`;
+            ``"parameters"``: one row per grey-box parameter, indexed by
+            ``name``, the columns of :class:`ParameterEstimate` and
+            ``change``; ``"gain"``: one row per measured channel, the
+            in-sample and validation RMSEs, gains and the noise floor.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        from ..core.tables import require_pandas
+        from .summary import TABLES, columns, records
+
+        rows = records(self, table)
+        pd = require_pandas()
+        return pd.DataFrame(rows, columns=columns(table)).set_index(TABLES[table])
+
+    def save(self, path) -> None:
+        """Write the result to ``path`` (a ``.npz`` file, no pickle inside).
+
+        The file holds what the report, :meth:`summary`, the tables and
+        :meth:`plot` need (format: :mod:`pysindy_mme.discovery.storage`), not
+        the user's code: :meth:`load` it anywhere pysindy-mme is installed.
+        """
+        from .storage import save
+
+        save(self, path)
+
+    @classmethod
+    def load(cls, path, assumed_model=None) -> Discovery:
+        """A result saved by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or Path
+        assumed_model : callable, optional
+            The assumed model the study ran with (for a grey box, ``f(x, t,
+            u, p)``: the fitted parameters are in the file). Without it the
+            loaded result reports, tabulates and plots, but its extended
+            model cannot simulate (:class:`~pysindy_mme.NotSavedError`).
+
+        Returns
+        -------
+        Discovery
+            With the stored numbers; what needs the user's code or the
+            fitted estimators (``validate``, ``mme.fit``, ...) raises
+            :class:`~pysindy_mme.NotSavedError` naming what is missing.
+        """
+        from .storage import load
+
+        return load(path, assumed_model=assumed_model)
 
     def plot(self, x_true=None, d_true=None, path=None):
         """Draw the study (needs matplotlib: ``pip install pysindy-mme[plot]``).

@@ -81,22 +81,27 @@ class ErrorEstimate:
 def _base(study):
     """The assumed model as ``(x, t, u, p) -> dx/dt`` (validated, unchecked);
     ``p`` its grey-box parameters (empty without)."""
-    if study.parameter_names:
-        raw, names = study.raw_model, study.parameter_names
+    return _AssumedRates(study)
 
-        def grey(x, t, u, p):
-            tt = np.broadcast_to(np.asarray(t, dtype=float), (x.shape[0],))
-            values = dict(zip(names, (float(v) for v in p)))
-            return np.asarray(raw(x, tt, u, values), dtype=float).reshape(x.shape)
 
-        return grey
-    f = study.model.unchecked()
+class _AssumedRates:
+    """:func:`_base`'s callable: a module-level class, not a closure, so that
+    the fits holding it (and a :class:`~.result.Discovery`) pickle whenever
+    the user's model does."""
 
-    def base(x, t, u, p):
+    def __init__(self, study):
+        self.names = tuple(study.parameter_names)
+        self.raw = study.raw_model if self.names else None
+        self.f = None if self.names else study.model.unchecked()
+
+    def __call__(self, x, t, u, p):
         tt = np.broadcast_to(np.asarray(t, dtype=float), (x.shape[0],))
-        return np.asarray(f(x, tt, u), dtype=float)
-
-    return base
+        if self.f is None:
+            values = dict(zip(self.names, (float(v) for v in p)))
+            out = self.raw(x, tt, u, values)
+            return np.asarray(out, dtype=float).reshape(x.shape)
+        # reshaped: a one-state model may answer (n_rows,)
+        return np.asarray(self.f(x, tt, u), dtype=float).reshape(x.shape)
 
 
 def rk4_substeps(study, rhs_rows, x, t) -> int:
@@ -488,8 +493,9 @@ def step_size_check(
     (:meth:`OutputErrorModel.integrator_effect`) moves no parameter by a
     tenth of its standard error, and neither the fitted measurements by a
     tenth of the noise nor the cost by a tenth of a chi-square unit (both
-    unit-free, so the decision does not depend on the data's units). ``names`` (one per entry of ``fit.theta``, offsets may be
-    left out) lets the note name the quantities that moved most.
+    unit-free, so the decision does not depend on the data's units).
+    ``names`` (one per entry of ``fit.theta``, offsets may be left out) lets
+    the note name the quantities that moved most.
     """
     dtheta, dx = engine.integrator_effect(fit)
     se = fit.std_errors

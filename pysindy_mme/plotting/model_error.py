@@ -21,11 +21,7 @@ def identified_correction(res) -> np.ndarray:
     Falls back to MME's state estimate when no extended fit exists (then the
     correction is zero anyway).
     """
-    x = res.extended_simulation
-    if x is None or not np.all(np.isfinite(x)):
-        x = res.mme.smoothed_x_
-    with np.errstate(all="ignore"):
-        return np.asarray(res.extended_model.correction(x, res.u), dtype=float)
+    return np.asarray(res.extended_correction, dtype=float)
 
 
 def plot_model_error(res, axes, d_true=None):
