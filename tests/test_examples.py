@@ -29,6 +29,15 @@ FINDS = {
     "duffing_hidden_stiffness.py": [r"x2' misses: -0\.9\d* x1\^3\n"],
     "forced_oscillator_input.py": [r"x2' misses: 0\.[45]\d* u\n"],
     "command_line.py": [r"velocity' misses: 0\.[45]\d* force\n", "timeseries.csv"],
+    "hysteresis.py": [
+        r"hidden state entering v': discover\(\.\.\., hidden_states=\{'z': 'v'\}\)",
+        r"\(v\)' = \[assumed\] f_v\(x, t\) \+ z\n",
+        r"Conclusion: explained\. ",
+        r"alpha +(49[5-9]\d\d|50[0-4]\d\d) +50000 ",
+        r"beta gamma +(79[2-9]|80[0-7])(\.\d+)? +800 ",
+        r"beta delta +-(10[89]\d|11[01]\d)(\.\d+)? +-1100 ",
+        r"extended / noise = (0\.9[5-9]\d|1\.0[0-4]\d)\)",
+    ],
 }
 #: examples on real data: data folder and extra arguments
 REAL_DATA = {"silverbox.py": ("silverbox", ["--data"])}

@@ -94,6 +94,17 @@ def test_quoted_terms_are_what_discover_finds(readme_session):
     assert max(abs(terms["x2"][k] - v) for k, v in truth.items()) < within
 
 
+def test_quoted_hidden_state_law_is_what_discover_finds(readme_session):
+    namespace, _ = readme_session
+    line = next(ln for ln in README.splitlines() if "print(hidden.terms)" in ln)
+    quoted = ast.literal_eval(line.split("#", 1)[1].strip())
+    terms = namespace["hidden"].terms
+    assert set(terms) == set(quoted) == {"z"}
+    assert set(terms["z"]) == set(quoted["z"])
+    for name, value in quoted["z"].items():
+        assert round(terms["z"][name], 1) == value, (name, terms["z"][name])
+
+
 def test_quoted_sindy_route_coefficients(readme_session):
     namespace, _ = readme_session
     model = namespace["model"]  # rebound by the optimizer-alone block: refit

@@ -24,7 +24,7 @@ from .loading import (
     positional_count,
 )
 
-__all__ = ["Request", "build_request", "discover_accepts"]
+__all__ = ["Request", "build_request", "discover_accepts", "parse_hidden_states"]
 
 
 @dataclass
@@ -161,6 +161,53 @@ def parse_parameters(text: str) -> dict:
     return out
 
 
+def parse_hidden_states(values, states, inputs) -> dict:
+    """``["z:v", ...]`` (repeated ``--hidden-state``) -> ``{"z": "v", ...}``,
+    checked against the state and input names."""
+    out = {}
+    for text in values or ():
+        name, colon, equation = (part.strip() for part in str(text).partition(":"))
+        if not colon or not name or not equation:
+            raise UsageError(
+                f"--hidden-state {text!r} must be NAME:EQUATION, the new state and "
+                "the state whose equation it enters, e.g. --hidden-state "
+                f"z:{states[-1]}"
+            )
+        if not _NAME.match(name):
+            raise UsageError(
+                f"--hidden-state {text}: {name!r} is not a valid name (letters, "
+                f"digits, _; not starting with a digit), e.g. --hidden-state "
+                f"z:{equation}"
+            )
+        if name in states or name in inputs:
+            kind = "a state of --states" if name in states else "an input"
+            raise UsageError(
+                f"--hidden-state {text}: {name!r} is already {kind}; give the "
+                "hidden state a new name, e.g. --hidden-state "
+                f"{_free_name(states + inputs + list(out))}:{equation}"
+            )
+        if name in out:
+            raise UsageError(
+                f"--hidden-state: {name!r} is given twice; give each hidden state "
+                "once (a state enters one equation)"
+            )
+        if equation not in states:
+            raise UsageError(
+                f"--hidden-state {text}: {equation!r} is not one of --states "
+                f"{states}; the hidden state enters the equation of one of the "
+                f"model's states, e.g. --hidden-state {name}:{states[-1]}"
+            )
+        out[name] = equation
+    return out
+
+
+def _free_name(taken) -> str:
+    for name in ("z", "w", "h1", "h2", "h3"):
+        if name not in taken:
+            return name
+    return "hidden"
+
+
 def library_from_option(kind: str, degree_text: str):
     """``--library`` and ``--degree`` -> a pysindy feature library."""
     import pysindy as ps
@@ -180,12 +227,18 @@ def library_from_option(kind: str, degree_text: str):
     )
 
 
-def _states(args) -> tuple[list, list, list]:
+def _states(args) -> tuple[list, list, list | None, dict]:
+    """``(states, measured, error states, hidden states)``; with hidden
+    states, the error states are the visible ones named (None when none is:
+    the hidden states only) - the hidden states get a model error anyway."""
     states = parse_names(args.states)
     if not states:
         raise UsageError("--states: give the state names, e.g. --states x1,x2")
     if len(set(states)) != len(states):
         raise UsageError(f"--states repeats a name: {states}; list each state once")
+    hidden = parse_hidden_states(
+        getattr(args, "hidden_state", None), states, parse_names(args.inputs)
+    )
     measured = parse_names(args.measured) or list(states)
     for name in measured:
         if name not in states:
@@ -193,14 +246,19 @@ def _states(args) -> tuple[list, list, list]:
                 f"--measured: {name!r} is not one of --states {states}; measured "
                 "columns are named after the states they measure"
             )
-    errors = parse_names(args.error_states) or list(states)
-    for name in errors:
-        if name not in states:
+    named = parse_names(args.error_states)
+    for name in named:
+        if name not in states and name not in hidden:
+            also = f" or --hidden-state {list(hidden)}" if hidden else ""
             raise UsageError(
-                f"--error-states: {name!r} is not one of --states {states}; name "
-                "the states whose equation may be wrong"
+                f"--error-states: {name!r} is not one of --states {states}{also}; "
+                "name the states whose equation may be wrong"
             )
-    return states, measured, errors
+    if hidden:
+        errors = [name for name in named if name in states] or None
+    else:
+        errors = named or list(states)
+    return states, measured, errors, hidden
 
 
 def _validation_rows(args, n_rows, train: slice):
@@ -299,6 +357,27 @@ def _grey_box(args, kwargs) -> dict:
     return parameters
 
 
+def _hidden(args, hidden, kwargs) -> None:
+    """--hidden-state and --substeps into ``kwargs``."""
+    if hidden:
+        if not discover_accepts("hidden_states"):
+            raise UsageError(
+                "--hidden-state is not supported by this version of pysindy-mme's "
+                "discover"
+            )
+        kwargs["hidden_states"] = hidden
+        if kwargs["error_states"] is None:
+            del kwargs["error_states"]  # discover's default: the hidden states
+    substeps = getattr(args, "substeps", None)
+    if substeps is not None:
+        value = _number(substeps, "--substeps", "--substeps 4", 1, integer=True)
+        if not discover_accepts("n_substeps"):
+            raise UsageError(
+                "--substeps is not supported by this version of pysindy-mme's discover"
+            )
+        kwargs["n_substeps"] = value
+
+
 def _record(args, path, measured):
     """``(y, t, u)`` of every row of one CSV file (the options' columns)."""
     header, data = load_csv(path)
@@ -329,7 +408,7 @@ def build_request(args) -> Request:
     """Check every option of ``discover``; nothing is computed yet."""
     files = _files(args)
     header, data = load_csv(files[0])
-    states, measured, errors = _states(args)
+    states, measured, errors, hidden = _states(args)
     t_all = _times(args, header, data)
     y_all = np.column_stack([_column(header, data, c, "--measured") for c in measured])
     inputs, u_all = _inputs(args, header, data)
@@ -359,7 +438,7 @@ def build_request(args) -> Request:
         n_states=len(states),
         measured=[states.index(n) for n in measured],
         noise_variance=_noise(args.noise_variance),
-        error_states=[states.index(n) for n in errors],
+        error_states=None if errors is None else [states.index(n) for n in errors],
         feature_library=library_from_option(args.library, args.degree),
         feature_names=states + inputs,
         alpha=_number(args.alpha, "--alpha", "--alpha 0.05"),
@@ -393,6 +472,7 @@ def build_request(args) -> Request:
                 2,
                 integer=True,
             )
+    _hidden(args, hidden, kwargs)
     parameters = _grey_box(args, kwargs)
     return Request(
         kwargs=kwargs,

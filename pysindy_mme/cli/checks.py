@@ -88,6 +88,8 @@ def confounded_error_states(pattern, measured, error_states) -> list:
 def error_state_warnings(request) -> list:
     """Warnings about ``--error-states`` (one line each)."""
     kw = request.kwargs
+    if kw.get("error_states") is None:  # the hidden states only: none measured
+        return []
     f = kw["assumed_model"]
     if request.parameters:
         values = dict(request.parameters)

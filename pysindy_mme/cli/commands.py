@@ -32,6 +32,8 @@ OPTION_OF = {
     "validation_window": "--validation-window",
     "validation": "--validation-rows / --validation",
     "parameters": "--parameters",
+    "hidden_states": "--hidden-state",
+    "n_substeps": "--substeps",
     "alpha": "--alpha",
     "input_hold": "--input-hold",
     "assumed_model": "--model",

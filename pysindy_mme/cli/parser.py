@@ -62,7 +62,8 @@ HELP = {
     "spectrum and says so. Default: auto. Example: --noise-variance 0.01 (noise "
     "sd 0.1)",
     "--error-states": "states whose equation may be wrong (each gets a model "
-    "error d(t)). Default: every state. Name only the equations that can be "
+    "error d(t)). Default: every state (with --hidden-state: the hidden states "
+    "only; the hidden states are always included). Name only the equations that can be "
     "wrong: an error in the equation of a measured state (such as position' = "
     "velocity, a definition) cannot be told apart from errors of the states seen "
     "only through it, and a warning says so. Example: --error-states velocity",
@@ -72,6 +73,15 @@ HELP = {
     "library defined in your file (e.g. a CustomLibrary of sign(v) or sin(x)). "
     "Default: poly. Example: --library power",
     "--degree": "degree of the poly library. Default: 3. Example: --degree 2",
+    "--hidden-state": "a state nobody measured that the model lacks, "
+    "NAME:EQUATION: a new state NAME entering the equation of the state "
+    "EQUATION with gain 1 (EQUATION' = f + NAME, in the units of EQUATION'), its "
+    "own law unknown (NAME' = 0 assumed, its terms searched in the library, "
+    "whose variables are then the states, the hidden states, then the inputs) and "
+    "its initial value fitted. The model error then sits on the hidden states "
+    "only, unless --error-states names others. Repeat it for several. The report "
+    "suggests it when the model error has memory no function of the states "
+    "gives. Default: none. Example: --hidden-state z:velocity",
     "--parameters": "grey box: parameters of your model to estimate, with initial "
     "guesses; the model is then f(x, t, u, p), p a dict name -> value (u is None "
     "without --inputs). Default: none (the model is fixed). "
@@ -91,6 +101,10 @@ HELP = {
     "--validation-window": "leading validation rows used to estimate the initial "
     "state (needs --validation-rows or --validation). Default: 50. Example: "
     "--validation-window 100",
+    "--substeps": "fewest RK4 steps per sample interval in every fit and "
+    "simulation (the study raises it to what the model's fastest time scale "
+    "needs); raise it when the report says the result changes with the "
+    "integration step. Default: 1. Example: --substeps 4",
     "--alpha": "significance level of the tests (consistency, each term, the "
     "extended model against the assumed one). Default: 0.001. Example: --alpha 0.01",
     "--error-model": "MME's prior on d(t): white (the paper) or random_walk "
@@ -154,10 +168,12 @@ def _discover_parser(sub):
     _add(disc, "--library", default="poly", metavar="poly|power|FILE.py:NAME")
     _add(disc, "--degree", default="3", metavar="N")
     _add(disc, "--parameters", metavar="NAME=VALUE,...")
+    _add(disc, "--hidden-state", action="append", metavar="NAME:EQUATION")
     _add(disc, "--train-rows", metavar="A:B")
     _add(disc, "--validation-rows", metavar="A:B")
     _add(disc, "--validation", action="append", metavar="FILE")
     _add(disc, "--validation-window", metavar="N")
+    _add(disc, "--substeps", metavar="N")
     _add(disc, "--alpha", default="0.001", metavar="P")
     _add(disc, "--error-model", default="white", metavar="white|random_walk")
     _add(disc, "--offsets", action="store_true")
