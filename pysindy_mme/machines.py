@@ -1136,7 +1136,7 @@ def hysteretic_oscillator(
     held (zero-order hold). Each sample interval is integrated by RK4 in
     ``substeps`` steps (the benchmark's 15 kHz at the defaults; the
     right-hand side has kinks at ``v = 0`` and ``z = 0`` only in its
-    derivative, and halving the step moves ``y`` by under 1e-4 of the noise).
+    derivative, and halving the step moves ``y`` by under 1e-2 of the noise).
 
     Parameters
     ----------
@@ -1217,8 +1217,11 @@ def hysteretic_oscillator(
             "gamma": gamma,
             "delta": delta,
         },
-        missing=f"a hysteretic force z with memory: m v' gains -z, z' = {alpha:g} v "
-        f"- {beta * gamma:g} |v| z - {beta * delta:g} v |z| (a state nobody measured)",
+        missing=(
+            "a hysteretic force F with memory (a state nobody measured): m v' "
+            f"gains -F, F' = {alpha:g} v {-beta * gamma:+g} |v| F "
+            f"{-beta * delta:+g} v |F|"
+        ),
         options=dict(
             n_samples=n_samples,
             rate=rate,
