@@ -541,8 +541,8 @@ class MMESmoother(GaussNewton):
                 f"x = {x_k.tolist()}): integrating it there gives "
                 f"{phi_k.tolist()}. The model is unstable or stiff at this "
                 "sampling rate; check the model and the units of the data, or "
-                "increase n_substeps (MME(n_substeps=...); in discover, "
-                "mme=MME(..., n_substeps=...), with or without parameters=)."
+                "increase n_substeps (MME(n_substeps=...); discover(n_substeps="
+                "...); on the command line --substeps)."
             )
 
     def linearize(self, x, d, theta=None) -> Linearization:
