@@ -571,8 +571,8 @@ class MMESmoother(GaussNewton):
                 f"{(x[k] * self.unit).tolist()}): it is unstable or stiff at "
                 "this sampling rate, at least near the estimated trajectory. "
                 "Check the model and the units of the data, or increase "
-                "n_substeps (MME(n_substeps=...); in discover, "
-                "mme=MME(..., n_substeps=...), with or without parameters=)."
+                "n_substeps (MME(n_substeps=...); discover(n_substeps=...); on "
+                "the command line --substeps)."
             )
         r = self.residuals(x, theta)
         H = self.measurement_jacobian(x)
