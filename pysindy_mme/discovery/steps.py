@@ -267,11 +267,8 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
         # its effect (a fitted stiffness takes on a hysteresis' stiffness),
         # and MME would estimate z as what is left over. At the guesses, the
         # user's split between parameters and hidden state holds.
+        # (documented with discover's hidden_states: not a warning)
         physical = np.asarray(study.parameter_init, float)
-        notes.append(
-            "MME estimated the hidden state at the guessed parameters (step 1's "
-            "fit absorbs the hidden state's effect into them)"
-        )
     if study.n_parameters:
         mme.set_params(assumed_model=study.assumed_at(physical))
     if study.offsets and assumed.fit.ok:

@@ -27,7 +27,7 @@ from .inputs import check_study
 from .memory import memory_evidence
 from .propose import propose_terms
 from .result import Discovery, TermEstimate
-from .statistics import residual_inflation
+from .statistics import partial_f_p_value, residual_inflation
 from .steps import (
     baseline,
     confirm_on_measurements,
@@ -195,7 +195,9 @@ def discover(
         the variables the law may use, ``z`` among them: the feature names
         are the states, then the hidden states, then the inputs). ``z`` is
         in the units of ``v'`` (a force ``F`` on a mass ``m`` shows as
-        ``-F / m``), its initial value is fitted, and the model error sits
+        ``-F / m``), its initial value is fitted, MME estimates it at the
+        guessed grey-box parameters (step 1's fit, made with ``z`` frozen,
+        absorbs its effect into them), and the model error sits
         on the hidden states only unless ``error_states`` names others
         (indices of the original states keep their meaning). When the
         assumed model's error has memory no function of the states can
@@ -238,6 +240,9 @@ def run_study(study, progress: Progress) -> Discovery:
         study, engine, assumed, estimate, proposals, progress.step
     )
     progress.stage(f"4. confirmed {len(confirmation.slots)} term(s)")
+    engine, assumed, substeps = _finer_if_needed(
+        study, engine, assumed, confirmation, proposals, estimate.x, substeps
+    )
     extended_fit = confirmation.fit or assumed.fit
     extended = _extended_model(study, proposals, extended_fit, estimate.x, substeps)
     fits = {"assumed": assumed.fit, "extended": extended_fit}
@@ -434,6 +439,54 @@ def _substeps(study, assumed, proposals, x_hat) -> int:
         return out
 
     return rk4_substeps(study, rhs_rows, x_hat, study.t)
+
+
+def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, substeps):
+    """The confirmed model's own RK4 steps: ``(engine, assumed, substeps)``.
+
+    The steps per interval were chosen for the regression's proposals; the
+    confirmed terms, at their fitted values, may be faster (a hysteretic law
+    whose decay rate grows with ``|v|``). When they need more steps, both
+    fits are polished with them, so that every later number (the gain, the
+    checks, the printed model's simulations) integrates the model as fast
+    as it is.
+    """
+    fit = confirmation.fit
+    if fit is None or not fit.ok:
+        return engine, assumed, substeps
+    u = study.u
+    model = study.model_at(fit.physical)
+    coefs = fit.coefficients
+
+    def rhs_rows(x, stride):
+        ts = study.t[::stride][: x.shape[0]]
+        us = None if u is None else u[::stride][: x.shape[0]]
+        out = np.array(model(x, ts, us), dtype=float)
+        z = x if us is None else np.hstack([x, us])
+        with np.errstate(all="ignore"):
+            cols = proposals.evaluate(z, [c for _, c in fit.slots])
+        for k, (i, _) in enumerate(fit.slots):
+            out[:, i] += coefs[k] * cols[:, k]
+        return out
+
+    needed = rk4_substeps(study, rhs_rows, fit.x, study.t)
+    if needed <= substeps:
+        return engine, assumed, substeps
+    finer = output_error_engine(study, proposals.evaluate, needed)
+    finer.noise_inflation = engine.noise_inflation
+    refit = finer.fit(fit.slots, fit.theta, fit.x)
+    base = baseline(study, assumed, finer, x_hat)
+    if not (refit.ok and base.fit.ok):
+        return engine, assumed, substeps
+    confirmation.fit = refit
+    confirmation.correction_p_value = partial_f_p_value(
+        base.fit, refit, n_added=len(refit.slots)
+    )
+    confirmation.log.append(
+        f"polished with {needed} RK4 steps per interval (the confirmed terms are "
+        f"faster than the proposals, which had {substeps})"
+    )
+    return finer, base, needed
 
 
 def _extended_model(study, proposals, fit, x_hat, substeps) -> ExtendedModel:
