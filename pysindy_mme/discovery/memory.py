@@ -14,6 +14,10 @@ like, without assuming a library:
 * the *history* predictability: the same with the states ``x(t - L)`` one
   lag earlier added as coordinates, the best of a few lags ``L``.
 
+Both regressions take ``d_i`` less its least-squares fit on ``[1, x, u]``
+(:func:`_beyond_linear`): a grey box's wrong parameters add a static part
+linear in the states to ``d`` that would swamp the rest.
+
 When history predicts most of what the present leaves unexplained (the
 unexplained share ``1 - r2`` cut to at most :data:`MEMORY_RATIO` of the
 static one, and by at least :data:`MEMORY_GAIN` of the whole), a state the
@@ -107,6 +111,21 @@ def _cv_r2(features, target, starts_ok) -> float:
     return 1.0 - ssr / total
 
 
+def _beyond_linear(static, d, ok) -> np.ndarray:
+    """``d`` less its least-squares fit on ``[1, x, u]``.
+
+    Wrong parameters of the assumed model add a part linear in the states
+    and inputs to ``d`` (a stiffness off by ``dk`` adds ``-dk y / m``), as
+    large as the guesses are poor; it is static, and would make any memory
+    look small beside it. The test judges what is left.
+    """
+    a = np.column_stack([np.ones(int(np.count_nonzero(ok))), static[ok]])
+    coef = np.linalg.lstsq(a, d[ok], rcond=None)[0]
+    out = np.full_like(d, np.nan)
+    out[ok] = d[ok] - a @ coef
+    return out
+
+
 def _lags(n_samples: int) -> list:
     """Lags tried: 1, 2, 4, ... samples, up to a fiftieth of the record."""
     top = max(1, min(n_samples // 50, 512))
@@ -141,7 +160,8 @@ def memory_evidence(x, d, u=None, error_states=None, starts=(0,)) -> list:
     finite = np.all(np.isfinite(static), axis=1) & np.all(np.isfinite(d), axis=1)
     out = []
     for i in error_states:
-        r2_static = _cv_r2(static, d[:, i], finite)
+        target = _beyond_linear(static, d[:, i], finite)
+        r2_static = _cv_r2(static, target, finite)
         best, best_lag = -np.inf, 0
         for lag in _lags(n):
             ok = finite.copy()
@@ -149,7 +169,7 @@ def memory_evidence(x, d, u=None, error_states=None, starts=(0,)) -> list:
                 ok[s : s + lag] = False
             past = np.roll(x, lag, axis=0)
             ok[lag:] &= finite[:-lag]
-            r2 = _cv_r2(np.hstack([static, past]), d[:, i], ok)
+            r2 = _cv_r2(np.hstack([static, past]), target, ok)
             if r2 > best:
                 best, best_lag = r2, lag
         unexplained = max(1.0 - r2_static, 1e-12)
