@@ -14,7 +14,20 @@ from sklearn.utils.validation import check_is_fitted
 
 from ._checks import InvalidParameterError, _dense_real
 
-__all__ = ["EstimatorInterface", "array_ndim", "warn_constant_lost"]
+__all__ = [
+    "ConstantNotInLibraryWarning",
+    "EstimatorInterface",
+    "array_ndim",
+    "warn_constant_lost",
+]
+
+
+class ConstantNotInLibraryWarning(UserWarning):
+    """The constant is significant but no library column carries it.
+
+    With ``fit_intercept=False`` (pysindy's convention) ``coef_`` is then fit
+    through the origin; add a constant column to the library to model it.
+    """
 
 
 def array_ndim(y) -> int:
@@ -33,7 +46,7 @@ def warn_constant_lost(targets) -> None:
         "prints and ensembles coef_ only). Add a constant column (e.g. "
         "include_bias=True) to model it, or give fit_intercept=True to "
         "keep it in intercept_ outside SINDy",
-        UserWarning,
+        ConstantNotInLibraryWarning,
         stacklevel=3,
     )
 

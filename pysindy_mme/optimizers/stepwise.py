@@ -148,8 +148,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         ``coefficients`` and ``EnsembleOptimizer`` read ``coef_`` only):
         selection still has the constant in the regression, but ``coef_`` is
         refit through the origin and ``intercept_`` is 0, so the printed
-        model is the one that predicts (as with STLSQ); a ``UserWarning``
-        says when the constant was significant. True: ``intercept_`` holds it
+        model is the one that predicts (as with STLSQ); a
+        ``ConstantNotInLibraryWarning`` says when the constant was
+        significant. True: ``intercept_`` holds it
         (scikit-learn's meaning, for use outside ``SINDy``).
     tolerance : float, default 1e-8
         Collinearity tolerance: a candidate whose residual after projecting

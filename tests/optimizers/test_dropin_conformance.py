@@ -19,6 +19,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pysindy_mme import FloatingFStepwise
+from pysindy_mme.optimizers import ConstantNotInLibraryWarning
 
 
 # --------------------------------------------------- x' = 1 - x, a constant term
@@ -61,7 +62,9 @@ def test_no_bias_column_fits_through_the_origin_and_says_so():
         optimizer=FloatingFStepwise(),
         feature_library=ps.PolynomialLibrary(degree=2, include_bias=False),
     )
-    with pytest.warns(UserWarning, match="constant is significant in target 0"):
+    with pytest.warns(
+        ConstantNotInLibraryWarning, match="constant is significant in target 0"
+    ):
         model.fit(x, t=t)
     _assert_printed_is_predicting(model, x)
     assert model.optimizer.intercept_dropped_[0]

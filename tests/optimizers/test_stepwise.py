@@ -21,6 +21,7 @@ from scipy import stats
 from sklearn.exceptions import ConvergenceWarning
 
 from pysindy_mme.optimizers import (
+    ConstantNotInLibraryWarning,
     ExcludedFeaturesWarning,
     FloatingFStepwise,
     StepwiseCycleWarning,
@@ -364,7 +365,9 @@ def test_intercept_kept_or_dropped():
     # The default (pysindy's convention, no constant column here): always
     # through the origin, intercept_ 0, and a warning where the constant
     # was significant.
-    with pytest.warns(UserWarning, match="constant is significant in target 1"):
+    with pytest.warns(
+        ConstantNotInLibraryWarning, match="constant is significant in target 1"
+    ):
         default = FloatingFStepwise().fit(X, Y)
     assert default.intercept_dropped_.tolist() == [True, True]
     np.testing.assert_array_equal(default.intercept_, 0.0)

@@ -23,6 +23,7 @@ from sklearn.exceptions import ConvergenceWarning, NotFittedError
 from sklearn.utils.validation import check_is_fitted
 
 from pysindy_mme import FloatingFStepwise, systems
+from pysindy_mme.optimizers import ConstantNotInLibraryWarning
 
 
 @pytest.fixture(scope="module")
@@ -197,7 +198,7 @@ def test_fit_on_constant_derivatives(data, request):
     # pysindy's convention (the default): the library has no constant column,
     # so the model is through the origin and predicts what coef_ says; a
     # warning says the constant was significant.
-    with pytest.warns(UserWarning, match="constant is significant"):
+    with pytest.warns(ConstantNotInLibraryWarning, match="constant is significant"):
         origin = FloatingFStepwise().fit(x, x_dot)
     np.testing.assert_array_equal(origin.intercept_, 0.0)
     np.testing.assert_allclose(origin.predict(x), x @ origin.coef_.T, rtol=1e-12)
