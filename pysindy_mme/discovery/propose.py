@@ -16,6 +16,7 @@ from sklearn.base import clone
 
 from ..core.features import SelectedFeatures
 from ..core.libraries import fresh_library
+from ..optimizers import FloatingFStepwise
 
 __all__ = ["Proposals", "propose_terms"]
 
@@ -215,6 +216,10 @@ def propose_terms(study, x_hat, d_hat) -> Proposals:
         theta = np.asarray(library.transform(z_hat))
     names = list(library.get_feature_names(study.feature_names))
     opt = clone(study.optimizer)
+    if isinstance(opt, FloatingFStepwise):
+        # The study proposes the constant as a term of its own (the
+        # ``constant_column`` slot) when the library has no constant column.
+        opt.set_params(fit_intercept=True)
     es = study.error_states
     targets = [study.state_names[i] for i in es]
     if _accepts_names(opt):

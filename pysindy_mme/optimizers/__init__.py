@@ -16,6 +16,8 @@ FloatingFStepwise())``). The modules, one job each:
 """
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
+from ._checks import InvalidParameterError
+from ._interface import ConstantNotInLibraryWarning
 from .anova import AnovaTable, f_critical, f_pvalue, fit_anova, lstsq_refined
 from .cv import FloatingFStepwiseCV
 from .selection import Step
@@ -24,9 +26,11 @@ from .summary import StepwiseSummary
 
 __all__ = [
     "AnovaTable",
+    "ConstantNotInLibraryWarning",
     "ExcludedFeaturesWarning",
     "FloatingFStepwise",
     "FloatingFStepwiseCV",
+    "InvalidParameterError",
     "Step",
     "StepwiseCycleWarning",
     "StepwiseSummary",

@@ -1,6 +1,15 @@
 """Argument checks of :class:`FloatingFStepwise` (run by ``fit`` before any work).
 
-Each error names the argument to fix.
+Each error names the argument to fix. A bad parameter value, of any kind
+(out of range, or of the wrong type), raises :class:`InvalidParameterError`,
+which is a ``ValueError`` (pysindy's and scikit-learn's convention) and, for
+code that expects one for a wrong type, a ``TypeError``; scikit-learn's own
+``InvalidParameterError`` is built the same way.
+
+Data are checked as pysindy's ``BaseOptimizer.fit`` checks them: rows whose
+library values or whose targets are all NaN are dropped (the end points of
+``FiniteDifference(drop_endpoints=True)``), with their sample weights; complex
+and sparse input are rejected (the library is read as a dense real array).
 """
 
 from __future__ import annotations
@@ -11,9 +20,22 @@ import numpy as np
 
 from ..core.validation import check_positive_number, check_probability
 
-__all__ = ["check_data", "check_params"]
+__all__ = ["InvalidParameterError", "check_data", "check_params"]
 
 AUTOCORRELATION = ("newey-west", None)
+
+
+class InvalidParameterError(ValueError, TypeError):
+    """A parameter or argument of :class:`FloatingFStepwise` has a bad value.
+
+    A ``ValueError`` (what pysindy's optimizers and scikit-learn raise for a bad
+    parameter) that is also a ``TypeError``, so that a wrong type is caught
+    either way.
+    """
+
+
+def _is_bool(value) -> bool:
+    return isinstance(value, (bool, np.bool_))
 
 
 def _check_thresholds(opt) -> dict:
@@ -65,29 +87,46 @@ def _check_thresholds(opt) -> dict:
 
 
 def check_params(opt) -> dict:
-    """Validated parameters of a :class:`FloatingFStepwise` as a dict."""
+    """Validated parameters of a :class:`FloatingFStepwise` as a dict.
+
+    Raises :class:`InvalidParameterError` (a ``ValueError``) naming the
+    parameter.
+    """
+    try:
+        return _check_params(opt)
+    except InvalidParameterError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise InvalidParameterError(str(exc)) from None
+
+
+def _check_params(opt) -> dict:
     params = _check_thresholds(opt)
     params["alpha"] = check_probability(opt.alpha, "alpha")
     if opt.autocorrelation not in AUTOCORRELATION:
         raise ValueError(
             f"autocorrelation must be 'newey-west' or None, got {opt.autocorrelation!r}"
         )
-    if not (isinstance(opt.floating, (bool, np.bool_)) or opt.floating == "auto"):
-        raise TypeError(
+    if not (_is_bool(opt.floating) or _is_auto(opt.floating)):
+        raise ValueError(
             f"floating must be True or False (or 'auto'), got {opt.floating!r}"
         )
-    if not isinstance(opt.drop_insignificant_constant, (bool, np.bool_)):
-        raise TypeError(
-            "drop_insignificant_constant must be True or False, got "
-            f"{opt.drop_insignificant_constant!r}"
+    if not (_is_bool(opt.time_ordered) or _is_auto(opt.time_ordered)):
+        raise ValueError(
+            f"time_ordered must be True or False (or 'auto'), got {opt.time_ordered!r}"
         )
+    for name in ("drop_insignificant_constant", "fit_intercept"):
+        if not _is_bool(getattr(opt, name)):
+            raise ValueError(
+                f"{name} must be True or False, got {getattr(opt, name)!r}"
+            )
     params["float_ratio"] = check_positive_number(
         opt.float_ratio, "float_ratio", minimum=1.0, strict=False
     )
     for name, minimum in (("max_iter", 1), ("max_report", 0)):
         value = getattr(opt, name)
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-            raise TypeError(f"{name} must be an integer, got {value!r}")
+            raise ValueError(f"{name} must be an integer, got {value!r}")
         if value < minimum:
             raise ValueError(f"{name} must be >= {minimum}, got {value}")
     tolerance = check_positive_number(opt.tolerance, "tolerance")
@@ -97,63 +136,114 @@ def check_params(opt) -> dict:
     return params
 
 
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value == "auto"
+
+
+def _dense_real(value, name: str) -> np.ndarray:
+    """``value`` as a float array; sparse and complex input rejected."""
+    if value is None:
+        raise InvalidParameterError(
+            "FloatingFStepwise requires y to be passed, but the target y is None"
+            if name == "y"
+            else f"{name} is None"
+        )
+    if hasattr(value, "toarray") or hasattr(value, "tocsr"):
+        raise InvalidParameterError(
+            f"{name} is a sparse matrix: sparse input is not supported "
+            f"(FloatingFStepwise reads a dense library; pass {name}.toarray())"
+        )
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise InvalidParameterError(f"{name} must be a numeric array: {exc}") from None
+    if np.iscomplexobj(arr) or (
+        arr.dtype == object and any(isinstance(v, complex) for v in arr.flat)
+    ):
+        raise InvalidParameterError(
+            f"Complex data not supported: {name} has complex values (their "
+            "imaginary parts would be dropped); pass the real and imaginary parts "
+            "as separate columns"
+        )
+    try:
+        return np.asarray(arr, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidParameterError(f"{name} must be a numeric array: {exc}") from None
+
+
 def check_data(x, y, sample_weight):
-    """``x`` (float view), ``y`` (2-D copy) and the weights, checked before any work."""
-    try:
-        x = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"x must be a numeric array: {exc}") from None
+    """``x`` (float view), ``y`` (2-D), the weights and the rows kept.
+
+    Rows where every library value or every target is NaN are dropped, as
+    pysindy's ``BaseOptimizer.fit`` drops them (``pysindy.utils.
+    drop_nan_samples``), and their weights with them. Returns ``(x, y, w,
+    kept)`` where ``kept`` is None when no row was dropped, else the indices
+    of the rows kept.
+    """
+    x = _dense_real(x, "x")
     if x.ndim != 2:
-        raise ValueError(f"x must be 2-D (n_samples, n_features), got shape {x.shape}")
+        raise InvalidParameterError(
+            f"x must be 2-D (n_samples, n_features), got shape {x.shape}"
+        )
     if x.shape[1] == 0:
-        raise ValueError("x has no columns (the library is empty)")
-    try:
-        y = np.array(y, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"y must be a numeric array: {exc}") from None
+        raise InvalidParameterError(
+            f"x has no columns: 0 feature(s) (shape={x.shape}) while a minimum "
+            "of 1 is required (the library is empty)"
+        )
+    y = _dense_real(y, "y")
     if y.ndim == 1:
         y = y.reshape(-1, 1)
     if y.ndim != 2:
-        raise ValueError(f"y must be 1-D or 2-D, got shape {y.shape}")
+        raise InvalidParameterError(f"y must be 1-D or 2-D, got shape {y.shape}")
     if y.shape[0] != x.shape[0]:
-        raise ValueError(
+        raise InvalidParameterError(
             f"y has {y.shape[0]} rows but x has {x.shape[0]}: they must "
             "have one row per sample"
-        )
-    bad = ~np.isfinite(y)
-    if np.any(bad):
-        row, col = np.argwhere(bad)[0]
-        kind = "NaN" if np.isnan(y[row, col]) else "inf"
-        raise ValueError(
-            f"y (the target) contains {kind} (first at row {row}, column "
-            f"{col}); remove those samples first (e.g. the NaN end points "
-            "of FiniteDifference(drop_endpoints=True))"
         )
     n = x.shape[0]
     if sample_weight is None:
         w = np.ones(n)
     else:
-        try:
-            w = np.asarray(sample_weight, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"sample_weight must be numeric: {exc}") from None
+        w = _dense_real(sample_weight, "sample_weight")
         if w.ndim == 0:
             w = np.full(n, float(w))
         if w.ndim != 1 or w.shape[0] != n:
-            raise ValueError(
+            raise InvalidParameterError(
                 f"sample_weight must have one entry per sample ({n}), got "
                 f"shape {w.shape}"
             )
         if not np.all(np.isfinite(w)):
-            raise ValueError("sample_weight contains NaN or inf")
+            raise InvalidParameterError("sample_weight contains NaN or inf")
         if np.any(w < 0):
-            raise ValueError(
+            raise InvalidParameterError(
                 f"sample_weight must be non-negative, got {w.min()} "
                 f"(at index {int(np.argmin(w))})"
             )
-    n_eff = float(w.sum())
-    if n_eff < 2:
-        raise ValueError(
-            f"need at least 2 observations (sum of sample_weight), got {n_eff:g}"
+    # pysindy's BaseOptimizer.fit: drop the samples where x or y is all NaN.
+    kept = None
+    if n and y.shape[1]:
+        good = ~np.all(np.isnan(x), axis=1) & ~np.all(np.isnan(y), axis=1)
+        if not np.all(good):
+            kept = np.flatnonzero(good)
+            x, y, w = x[kept], y[kept], w[kept]
+    bad = ~np.isfinite(y)
+    if np.any(bad):
+        row, col = np.argwhere(bad)[0]
+        kind = "NaN" if np.isnan(y[row, col]) else "inf"
+        where = int(row if kept is None else kept[row])
+        raise InvalidParameterError(
+            f"y (the target) contains {kind} (first at row {where}, column "
+            f"{col}); rows whose targets are all NaN are dropped (as pysindy "
+            "drops them), but a row with some finite targets cannot be used"
         )
-    return x, y, w
+    n_eff = float(w.sum())
+    if x.shape[0] and n_eff == 0:
+        raise InvalidParameterError(
+            "sample_weight is zero for every sample: no observation to fit"
+        )
+    if n_eff < 2:
+        raise InvalidParameterError(
+            f"need at least 2 observations (sum of sample_weight), got {n_eff:g}: "
+            f"{x.shape[0]} sample(s) were given (n_samples = {x.shape[0]})"
+        )
+    return x, y, w, kept

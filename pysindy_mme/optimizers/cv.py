@@ -18,7 +18,8 @@ from pysindy.optimizers import BaseOptimizer
 from sklearn.base import clone
 from sklearn.utils.validation import check_is_fitted
 
-from ._checks import check_data
+from ._checks import InvalidParameterError, check_data
+from ._interface import EstimatorInterface
 from .robust import newey_west_lags
 from .stepwise import FloatingFStepwise
 
@@ -40,7 +41,7 @@ def blocked_folds(n_rows: int, n_splits: int, gap: int):
         yield rows[train], rows[lo:hi]
 
 
-class FloatingFStepwiseCV(BaseOptimizer):
+class FloatingFStepwiseCV(EstimatorInterface, BaseOptimizer):
     """:class:`FloatingFStepwise` with ``alpha`` chosen by blocked cross-validation.
 
     For each level in ``alphas`` the optimizer is fitted on all but one
@@ -127,7 +128,9 @@ class FloatingFStepwiseCV(BaseOptimizer):
         if isinstance(self.n_splits, bool) or not isinstance(
             self.n_splits, numbers.Integral
         ):
-            raise TypeError(f"n_splits must be an integer, got {self.n_splits!r}")
+            raise InvalidParameterError(
+                f"n_splits must be an integer, got {self.n_splits!r}"
+            )
         if self.n_splits < 2:
             raise ValueError(f"n_splits must be >= 2, got {self.n_splits}")
         gap = newey_west_lags(n_rows) if self.gap is None else self.gap
@@ -144,7 +147,7 @@ class FloatingFStepwiseCV(BaseOptimizer):
             )
         template = FloatingFStepwise() if self.estimator is None else self.estimator
         if not isinstance(template, FloatingFStepwise):
-            raise TypeError(
+            raise InvalidParameterError(
                 f"estimator must be a FloatingFStepwise, got {type(template).__name__}"
             )
         return np.sort(alphas), int(gap), template
@@ -162,7 +165,7 @@ class FloatingFStepwiseCV(BaseOptimizer):
         -------
         self
         """
-        x, y, w = check_data(x_, y, sample_weight)
+        x, y, w, _ = check_data(x_, y, sample_weight)
         alphas, gap, template = self._check_params(x.shape[0])
         scale = np.average(
             (y - np.average(y, axis=0, weights=w)) ** 2, axis=0, weights=w

@@ -30,6 +30,7 @@ def final_fit(
     max_report: int,
     rule,
     drop_constant: bool,
+    fit_intercept: bool = True,
 ):
     """Coefficients on the support (accurate QR solve) and the ANOVA table.
 
@@ -40,6 +41,13 @@ def final_fit(
     With a robust ``rule`` (:class:`~.rules.FamilywiseRule`) the table also
     holds the robust statistics, and the constant is kept or dropped by its
     robust partial F-ratio.
+
+    Without a constant column in the library and with ``fit_intercept``
+    False, the coefficients are always refit through the origin (pysindy's
+    convention: ``coef_`` is the whole model).
+
+    Returns ``(row, intercept, table, dropped, significant_lost)``, the last
+    True where a significant constant was left out that way.
     """
     support = np.sort(np.asarray(state.support, dtype=int))
     top = []
@@ -109,7 +117,9 @@ def final_fit(
             else table.intercept_partial_f
         )
         insignificant = not f_constant >= rule.constant_threshold(k)
-    dropped = bool(drop_constant and insignificant)
+    forced = screen.carrier is None and not fit_intercept
+    dropped = bool(forced or (drop_constant and insignificant))
+    significant_lost = bool(forced and not insignificant)
     if dropped:
         icpt = 0.0
         row[support] = units(origin, col_unit, y_unit)
@@ -119,7 +129,7 @@ def final_fit(
         if screen.carrier is not None:
             row[screen.carrier] = icpt / screen.carrier_value
             icpt = 0.0
-    return row, icpt, table, dropped
+    return row, icpt, table, dropped, significant_lost
 
 
 def _with_robust_statistics(table, xs, y, w, k: int, rule):

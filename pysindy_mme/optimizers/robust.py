@@ -19,10 +19,12 @@ chi-squared distribution with one degree of freedom.
 Rows are taken in the order given: consecutive rows are neighbours in time.
 Rows from several trajectories stacked one after the other (what pysindy
 passes) add a few spurious products at the joins, which do not matter for
-records longer than a few dozen samples. Rows in arbitrary order (for
-example bootstrap samples inside ``EnsembleOptimizer``) have no usable time
-neighbours: the estimate then reduces to the heteroscedasticity-robust
-(White) variance, which is still valid for independent rows.
+records longer than a few dozen samples. Rows in arbitrary order (bootstrap
+samples inside ``EnsembleOptimizer``, shuffled rows, the windows of a weak
+library) have no usable time neighbours, and the dependence between them
+cannot be estimated: :func:`rows_look_time_ordered` tells such rows apart,
+and the default rule then uses the ordinary test
+(``FloatingFStepwise(time_ordered=...)``).
 
 Sample weights: the state works with rows multiplied by ``sqrt(w)``, so a row
 of weight ``w`` contributes the score ``w r e``; its variance is that of one
@@ -54,6 +56,7 @@ __all__ = [
     "robust_joint_f",
     "robust_in_model_f",
     "robust_table_statistics",
+    "rows_look_time_ordered",
 ]
 
 # Robust F-ratios are computed for this many candidates, those with the
@@ -108,6 +111,48 @@ def lag1_autocorrelation(e: np.ndarray) -> float:
         return 0.0
     den = float(e @ e)
     return float(e[:-1] @ e[1:]) / den if den > 0 else 0.0
+
+
+# Rows are taken to be in time order unless the median lag-1 autocorrelation
+# of the library columns is below this: near 1 for the samples of a
+# trajectory, within a few 1/sqrt(n) of 0 in a random order.
+TIME_ORDER_LAG1 = 0.3
+# ... and shorter records are taken as given (too few rows to tell).
+TIME_ORDER_MIN_ROWS = 20
+# The decision reads at most this many columns (evenly spread).
+TIME_ORDER_MAX_COLUMNS = 200
+
+
+def rows_look_time_ordered(x, eligible) -> bool:
+    """Whether the rows of the library ``x`` look like samples in time order.
+
+    The median, over the ``eligible`` columns (finite, not constant), of the
+    lag-1 autocorrelation in row order: samples of a trajectory give values
+    near 1 (each column is a smooth function of time), rows in a random
+    order (shuffled, bootstrapped, the random window centres of a weak
+    library) values near 0. Rows are taken as time-ordered unless it is
+    below ``TIME_ORDER_LAG1``; records of fewer than
+    ``TIME_ORDER_MIN_ROWS`` rows or without an eligible column are taken as
+    given (True).
+    """
+    cols = np.flatnonzero(np.asarray(eligible, dtype=bool))
+    n = x.shape[0]
+    if n < TIME_ORDER_MIN_ROWS or cols.size == 0:
+        return True
+    if cols.size > TIME_ORDER_MAX_COLUMNS:
+        cols = cols[np.linspace(0, cols.size - 1, TIME_ORDER_MAX_COLUMNS).astype(int)]
+    values = []
+    for j in cols:
+        c = np.asarray(x[:, j], dtype=float)
+        top = float(np.max(np.abs(c)))
+        if not top > 0:
+            continue
+        c = c / top  # no overflow in the squares
+        c = c - c.mean()
+        values.append(lag1_autocorrelation(c))
+    if not values:
+        return True
+    return bool(np.median(values) >= TIME_ORDER_LAG1)
 
 
 def _small_sample(n: int, n_params: int) -> float:

@@ -20,7 +20,7 @@ import numpy as np
 from .anova import f_critical
 from .robust import newey_west_lags, robust_candidate_f, robust_in_model_f
 
-__all__ = ["PAPER_F", "PAPER_RATIO", "ClassicRule", "FamilywiseRule"]
+__all__ = ["PAPER_F", "PAPER_RATIO", "ClassicRule", "FamilywiseRule", "make_rule"]
 
 # The paper's F* and float ratio (Kolodziej & Mook: "F* is chosen to be ten";
 # the floating threshold one order of magnitude below the strongest).
@@ -134,3 +134,22 @@ class FamilywiseRule:
         if not self.robust:
             return classic
         return robust_candidate_f(state, self.lags, classic)
+
+
+def make_rule(params, n_candidates: int, n_eff: float, n_rows: int, robust: bool):
+    """The rule validated parameters select: the default unless thresholds given.
+
+    ``robust``: Newey-West F-ratios for the default rule (``autocorrelation``
+    given and rows in time order).
+    """
+    if params["f_enter"] is None and params["alpha_enter"] is None:
+        return FamilywiseRule(
+            params["alpha"], n_candidates, n_eff, n_rows, robust=robust
+        )
+    return ClassicRule(
+        params["f_enter"],
+        params["f_remove"],
+        params["alpha_enter"],
+        params["alpha_remove"],
+        n_eff,
+    )

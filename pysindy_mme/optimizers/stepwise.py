@@ -33,10 +33,12 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 from ._checks import check_data, check_params
+from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
 from .final_fit import final_fit
 from .incremental_qr import IncrementalQR
-from .rules import PAPER_F, PAPER_RATIO, ClassicRule, FamilywiseRule
+from .robust import rows_look_time_ordered
+from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
 from .screening import Screen, screen_columns
 from .selection import engage_phase_two, select
 from .summary import build_summary
@@ -44,7 +46,7 @@ from .summary import build_summary
 __all__ = ["FloatingFStepwise"]
 
 
-class FloatingFStepwise(BaseOptimizer):
+class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     """Stepwise regression on partial F-ratios, as a pysindy optimizer.
 
     ``ps.SINDy(optimizer=FloatingFStepwise())``. Each target (equation) gets
@@ -108,10 +110,25 @@ class FloatingFStepwise(BaseOptimizer):
         F-ratios (Bartlett kernel, ``floor(4 (n / 100)**(2/9))`` lags; see
         :mod:`pysindy_mme.optimizers.robust`), valid for autocorrelated and
         heteroscedastic residuals, such as those of smoothed finite-difference
-        derivatives; rows must be in time order for it to see the
-        autocorrelation (in any other order it is still a valid
-        heteroscedasticity-robust test). None: classic partial F-ratios
-        (independent residuals of equal variance).
+        derivatives; it needs rows in time order (see ``time_ordered``).
+        None: classic partial F-ratios (independent residuals of equal
+        variance).
+    time_ordered : {"auto", True, False}, default "auto"
+        Whether consecutive rows are neighbours in time, as the Newey-West
+        variance and ``floating="auto"`` (which reads the residual's lag-1
+        autocorrelation) assume. They are not with pysindy's
+        ``WeakPDELibrary`` (integrals over overlapping windows at random
+        centres), shuffled rows or bootstrap samples (``EnsembleOptimizer``).
+        ``"auto"``: in time order unless the median lag-1 autocorrelation of
+        the library columns is below 0.3 (near 1 along a trajectory, near 0
+        in a random order; under 20 rows: as given). Out of time order
+        (``rows_in_time_order_`` False) the default rule uses the ordinary
+        test (classic partial F-ratios, same Bonferroni level) and, with
+        ``floating="auto"``, Phase II: the dependence between such rows
+        cannot be seen, so the F-ratios' scale is uncalibrated (a weak
+        library's grow with its number of windows), which Phase II's
+        relative threshold does not depend on. ``floating=False`` for truly
+        independent rows; ``time_ordered=True`` keeps the robust test.
     max_iter : int, default 1000
         Maximum number of additions plus removals per target. Reaching it
         raises a ``ConvergenceWarning`` and sets ``converged_`` to False.
@@ -124,6 +141,17 @@ class FloatingFStepwise(BaseOptimizer):
         origin and the intercept reported as 0, so that dynamics without a
         constant print without a ``1`` term. ``anova_`` still describes the
         fit with intercept (the paper's Table II has an Intercept row).
+    fit_intercept : bool, default False
+        The constant where the library has no constant column (with one,
+        e.g. pysindy's ``"1"``, that column carries it in ``coef_``). False,
+        pysindy's convention (``SINDy.print``, ``equations``,
+        ``coefficients`` and ``EnsembleOptimizer`` read ``coef_`` only):
+        selection still has the constant in the regression, but ``coef_`` is
+        refit through the origin and ``intercept_`` is 0, so the printed
+        model is the one that predicts (as with STLSQ); a
+        ``ConstantNotInLibraryWarning`` says when the constant was
+        significant. True: ``intercept_`` holds it
+        (scikit-learn's meaning, for use outside ``SINDy``).
     tolerance : float, default 1e-8
         Collinearity tolerance: a candidate whose residual after projecting
         out the model is below ``tolerance`` times its centred norm cannot
@@ -144,14 +172,15 @@ class FloatingFStepwise(BaseOptimizer):
     coef_ : ndarray (n_targets, n_features)
         Least-squares coefficients on the selected functions (zero elsewhere).
         If the library has a constant column (e.g. pysindy's ``"1"``), the
-        intercept is carried by it; otherwise by ``intercept_``.
+        intercept is carried by it.
     intercept_ : ndarray (n_targets,)
-        The fitted constant when the library has no constant column (0 when it
-        has one, or when the constant was dropped).
+        0, unless the library has no constant column and ``fit_intercept`` is
+        True: then the fitted constant (0 where it was dropped).
     ind_ : ndarray of bool (n_targets, n_features)
         The support of each target.
     Theta_ : ndarray (n_samples, n_features)
-        The library matrix that was fitted (a float view of ``x``, not a copy).
+        The library matrix that was fitted (a float view of ``x``, not a copy,
+        unless rows that are all NaN were dropped).
     history_ : list of ndarray
         ``coef_`` after each step (pysindy's meaning), starting from zeros.
     anova_ : list of :class:`~pysindy_mme.optimizers.AnovaTable`
@@ -184,7 +213,11 @@ class FloatingFStepwise(BaseOptimizer):
         selection stopped at the model of the cycle with the largest overall
         F-ratio.
     intercept_dropped_ : ndarray of bool (n_targets,)
-        Whether the constant was dropped (``drop_insignificant_constant``).
+        Whether the constant was dropped (``drop_insignificant_constant``, or
+        no constant column and ``fit_intercept=False``).
+    rows_in_time_order_ : bool
+        Whether the rows were taken to be in time order (``time_ordered``);
+        where False, the default rule used the ordinary test.
     excluded_ : dict
         ``{column index: reason}`` for columns that can never be selected:
         non-finite values, all zero, constant (a second constant column),
@@ -215,9 +248,11 @@ class FloatingFStepwise(BaseOptimizer):
     correlated neighbours, no independent evidence), so multiplying all
     weights by a constant changes nothing. Rows of weight 0 are ignored.
 
-    The target must be finite: unlike pysindy's own optimizers, rows with NaN
-    targets (e.g. the end points of ``FiniteDifference(drop_endpoints=True)``)
-    are an error rather than silently dropped.
+    Rows whose library values or targets are all NaN (the end points of
+    ``FiniteDifference(drop_endpoints=True)``) are dropped, as pysindy's
+    ``BaseOptimizer.fit`` drops them; other non-finite targets, complex and
+    sparse input are errors. A bad parameter value raises a ``ValueError``
+    naming it (:class:`~._checks.InvalidParameterError`, also a TypeError).
 
     A target reproduced to rounding level (relative residual ``< 1e-12``,
     noise-free data) takes no further functions, Phase II does not rank the
@@ -238,9 +273,6 @@ class FloatingFStepwise(BaseOptimizer):
     ...                               model.feature_names))  # doctest: +SKIP
     """
 
-    # LinearRegression's tags read ``positive``; coefficients are unconstrained.
-    positive = False
-
     def __init__(
         self,
         f_enter=None,
@@ -251,8 +283,10 @@ class FloatingFStepwise(BaseOptimizer):
         float_ratio=10.0,
         alpha=0.01,
         autocorrelation="newey-west",
+        time_ordered="auto",
         max_iter=1000,
         drop_insignificant_constant=True,
+        fit_intercept=False,
         tolerance=1e-8,
         max_report=10,
         normalize_columns=False,
@@ -271,8 +305,10 @@ class FloatingFStepwise(BaseOptimizer):
         self.float_ratio = float_ratio
         self.alpha = alpha
         self.autocorrelation = autocorrelation
+        self.time_ordered = time_ordered
         self.max_iter = max_iter
         self.drop_insignificant_constant = drop_insignificant_constant
+        self.fit_intercept = fit_intercept
         self.tolerance = tolerance
         self.max_report = max_report
         self.normalize_columns = normalize_columns
@@ -324,8 +360,12 @@ class FloatingFStepwise(BaseOptimizer):
         self
         """
         params = check_params(self)
-        x, y, w = check_data(x_, y, sample_weight)
+        # predict's shape follows y's (scikit-learn's convention); coef_ stays
+        # 2-D, as pysindy's optimizers keep it
+        y_ndim = array_ndim(y)
+        x, y, w, _ = check_data(x_, y, sample_weight)
         n_features = x.shape[1]
+        self._y_ndim = y_ndim
         for label, names, size, what in (
             ("feature_names", feature_names, n_features, "x has"),
             ("target_names", target_names, y.shape[1], "y has"),
@@ -350,8 +390,16 @@ class FloatingFStepwise(BaseOptimizer):
         if not np.all(keep):
             x, y, w = x[keep], y[keep], w[keep]
         screen = screen_columns(x, np.sqrt(w), float(w.sum()), params["tolerance"])
-        rule = self._rule(
-            params, int(screen.eligible.sum()), float(w.sum()), x.shape[0]
+        if isinstance(self.time_ordered, str):
+            self.rows_in_time_order_ = rows_look_time_ordered(x, screen.eligible)
+        else:
+            self.rows_in_time_order_ = bool(self.time_ordered)
+        rule = make_rule(
+            params,
+            int(screen.eligible.sum()),
+            float(w.sum()),
+            x.shape[0],
+            robust=self.autocorrelation is not None and self.rows_in_time_order_,
         )
         self.excluded_ = screen.excluded
         self.constant_feature_ = screen.carrier
@@ -379,11 +427,16 @@ class FloatingFStepwise(BaseOptimizer):
         self.phase_two_ = np.zeros(n_targets, dtype=bool)
         self.phase_one_lag1_ = np.zeros(n_targets)
         self.joint_tests_ = [None] * n_targets
+        lost = []
         for t in range(n_targets):
-            coef[t], intercept[t] = self._fit_target(
+            coef[t], intercept[t], significant_lost = self._fit_target(
                 x, y[:, t], w, screen, rule, t, coef
             )
             self.history_.append(coef.copy())
+            if significant_lost:
+                lost.append(self._target_name(t))
+        if lost:
+            warn_constant_lost(lost)
         self.coef_ = coef
         self.intercept_ = intercept
         self.ind_ = coef != 0
@@ -393,23 +446,9 @@ class FloatingFStepwise(BaseOptimizer):
         names = getattr(self, "feature_names_", None)
         return str(names[j]) if names is not None else f"f{j}"
 
-    def _rule(self, params, n_candidates: int, n_eff: float, n_rows: int):
-        """The entry/removal rule these parameters select (see :mod:`.rules`)."""
-        if params["f_enter"] is None and params["alpha_enter"] is None:
-            return FamilywiseRule(
-                params["alpha"],
-                n_candidates,
-                n_eff,
-                n_rows,
-                robust=self.autocorrelation is not None,
-            )
-        return ClassicRule(
-            params["f_enter"],
-            params["f_remove"],
-            params["alpha_enter"],
-            params["alpha_remove"],
-            n_eff,
-        )
+    def _target_name(self, t: int) -> str:
+        names = getattr(self, "target_names_", None)
+        return f"{names[t]}'" if names is not None else f"target {t}"
 
     def _select(self, make_state, rule, coef, target: int):
         """Phases I and II of one target: (state, Selection, history rows, rule).
@@ -439,8 +478,17 @@ class FloatingFStepwise(BaseOptimizer):
             )
 
         state = make_state()
-        if not (self.floating == "auto" and rule.robust):
-            return state, run(state, rule, self.floating), history, rule
+        floating = self.floating
+        if (
+            floating == "auto"
+            and not self.rows_in_time_order_
+            and not (isinstance(rule, ClassicRule))
+        ):
+            # Rows not in time order: the lag-1 autocorrelation "auto" reads
+            # means nothing, and the F-ratios' scale is not calibrated.
+            floating = True
+        if not (floating == "auto" and rule.robust):
+            return state, run(state, rule, floating), history, rule
         result = run(state, rule, False)
         if not engage_phase_two(state, "auto"):
             return state, result, history, rule
@@ -500,7 +548,7 @@ class FloatingFStepwise(BaseOptimizer):
         self.phase_two_[target] = result.phase_two
         self.phase_one_lag1_[target] = result.phase_one_lag1
         self.joint_tests_[target] = result.joint
-        row, icpt, table, dropped = final_fit(
+        row, icpt, table, dropped, significant_lost = final_fit(
             state,
             x,
             yt,
@@ -510,26 +558,11 @@ class FloatingFStepwise(BaseOptimizer):
             max_report=self.max_report,
             rule=rule,
             drop_constant=self.drop_insignificant_constant,
+            fit_intercept=bool(self.fit_intercept),
         )
         self.anova_.append(table)
         self.intercept_dropped_[target] = dropped
-        return row, icpt
-
-    # ----------------------------------------------------------------- predict
-    def predict(self, x):
-        """``x @ coef_.T + intercept_``, reading only the columns in use.
-
-        Columns with zero coefficients are not read, so non-finite values in
-        set-aside library columns do not spoil predictions.
-        """
-        check_is_fitted(self, "coef_")
-        x = np.asarray(x, dtype=float)
-        if x.ndim != 2 or x.shape[1] != self.coef_.shape[1]:
-            raise ValueError(
-                f"x must have shape (n_samples, {self.coef_.shape[1]}), got {x.shape}"
-            )
-        used = np.flatnonzero(np.any(self.coef_ != 0, axis=0))
-        return x[:, used] @ self.coef_[:, used].T + self.intercept_
+        return row, icpt, significant_lost
 
     # ----------------------------------------------------------------- summary
     def summary(self, feature_names=None, target_names=None, target=None):

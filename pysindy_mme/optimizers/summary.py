@@ -78,12 +78,24 @@ def rule_description(opt) -> str:
         )
         rule = f"alpha_enter = {opt.alpha_enter:g}, alpha_remove = {a_rem:g}"
     default_rule = opt.f_enter is None and opt.alpha_enter is None
+    in_order = getattr(opt, "rows_in_time_order_", True)
     if default_rule:
-        stat = "classic" if opt.autocorrelation is None else "Newey-West robust"
+        stat = (
+            "classic"
+            if opt.autocorrelation is None or not in_order
+            else "Newey-West robust"
+        )
         rule = (
             f"family-wise alpha = {opt.alpha:g} (Bonferroni over the "
             f"candidates outside the model), {stat} partial F"
         )
+        if not in_order:
+            rule += " (rows not in time order: the ordinary test)"
+            if opt.floating == "auto":
+                return (
+                    f"FloatingFStepwise: {rule}, Phase II floating ratio "
+                    f"{opt.float_ratio:g} (auto, rows not in time order)"
+                )
     engaged = ", ".join(str(t) for t in np.flatnonzero(opt.phase_two_))
     if opt.floating == "auto" and default_rule and opt.autocorrelation:
         rule += (
@@ -139,7 +151,13 @@ def _notes(opt, t) -> list:
     """Plain-text notes under a target's ANOVA table."""
     notes = []
     table = opt.anova_[t]
-    if opt.intercept_dropped_[t] and table.robust:
+    no_column = getattr(opt, "constant_feature_", 0) is None
+    if opt.intercept_dropped_[t] and no_column and not opt.fit_intercept:
+        notes.append(
+            "  Note: the library has no constant column and fit_intercept is "
+            "False: coef_ is refit through the origin (pysindy's convention)."
+        )
+    elif opt.intercept_dropped_[t] and table.robust:
         notes.append(
             "  Note: the intercept's robust partial F "
             f"({table.intercept_robust_partial_f:.4g}) is below the single-test "

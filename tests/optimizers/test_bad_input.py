@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse
 from bad_input_support import (
     Bad,
     assert_raises_as_documented,
@@ -135,9 +136,16 @@ BAD_INPUTS = [
         ValueError,
         r"tolerance must be < 1",
     ),
-    # parameters: types
+    # parameters: types (a ValueError, pysindy's convention, that is also a
+    # TypeError)
     Bad(
         "stepwise: max_iter not an integer",
+        lambda tmp: _stepwise(max_iter=2.5),
+        ValueError,
+        r"max_iter must be an integer",
+    ),
+    Bad(
+        "stepwise: max_iter not an integer (as TypeError)",
         lambda tmp: _stepwise(max_iter=2.5),
         TypeError,
         r"max_iter must be an integer",
@@ -145,14 +153,44 @@ BAD_INPUTS = [
     Bad(
         "stepwise: floating not a bool",
         lambda tmp: _stepwise(floating="yes"),
-        TypeError,
+        ValueError,
+        r"floating must be True or False",
+    ),
+    Bad(
+        "stepwise: floating the string 'None'",
+        lambda tmp: _stepwise(floating="None"),
+        ValueError,
         r"floating must be True or False",
     ),
     Bad(
         "stepwise: f_enter a string",
         lambda tmp: _stepwise(f_enter="10"),
-        TypeError,
+        ValueError,
         r"f_enter must be a real number",
+    ),
+    Bad(
+        "stepwise: drop_insignificant_constant not a bool",
+        lambda tmp: _stepwise(drop_insignificant_constant="no"),
+        ValueError,
+        r"drop_insignificant_constant must be True or False",
+    ),
+    Bad(
+        "stepwise: fit_intercept not a bool",
+        lambda tmp: _stepwise(fit_intercept=None),
+        ValueError,
+        r"fit_intercept must be True or False",
+    ),
+    Bad(
+        "stepwise: time_ordered not a bool",
+        lambda tmp: _stepwise(time_ordered="sometimes"),
+        ValueError,
+        r"time_ordered must be True or False \(or 'auto'\)",
+    ),
+    Bad(
+        "stepwise: autocorrelation unknown",
+        lambda tmp: _stepwise(autocorrelation="bogus"),
+        ValueError,
+        r"autocorrelation must be 'newey-west' or None",
     ),
     # data: the library
     Bad(
@@ -164,8 +202,20 @@ BAD_INPUTS = [
     Bad(
         "stepwise: x not numeric",
         lambda tmp: _stepwise(x=[["a"]] * 20),
-        TypeError,
+        ValueError,
         r"x must be a numeric array",
+    ),
+    Bad(
+        "stepwise: x complex",
+        lambda tmp: _stepwise(x=X_LIB + 1j),
+        ValueError,
+        r"Complex data not supported: x has complex values",
+    ),
+    Bad(
+        "stepwise: x sparse",
+        lambda tmp: _stepwise(x=scipy.sparse.csr_matrix(X_LIB)),
+        ValueError,
+        r"x is a sparse matrix: sparse input is not supported",
     ),
     Bad(
         "stepwise: x one-dimensional",
@@ -181,10 +231,22 @@ BAD_INPUTS = [
     ),
     # data: the target
     Bad(
-        "stepwise: NaN in the target",
-        lambda tmp: _stepwise(y=with_value(Y_LIB, 3, np.nan)),
+        "stepwise: NaN in one of two targets",
+        lambda tmp: _stepwise(y=np.column_stack([Y_LIB, with_value(Y_LIB, 3, np.nan)])),
         ValueError,
-        r"y \(the target\) contains NaN \(first at row 3",
+        r"y \(the target\) contains NaN \(first at row 3, column 1",
+    ),
+    Bad(
+        "stepwise: y complex",
+        lambda tmp: _stepwise(y=Y_LIB * (1 + 1j)),
+        ValueError,
+        r"Complex data not supported: y has complex values",
+    ),
+    Bad(
+        "stepwise: y None",
+        lambda tmp: _stepwise(y=None),
+        ValueError,
+        r"requires y to be passed, but the target y is None",
     ),
     Bad(
         "stepwise: inf in the target",
@@ -220,6 +282,12 @@ BAD_INPUTS = [
     Bad(
         "stepwise: sample_weight all zero",
         lambda tmp: _stepwise(sample_weight=readonly(np.zeros(20))),
+        ValueError,
+        r"sample_weight is zero for every sample",
+    ),
+    Bad(
+        "stepwise: one observation's weight",
+        lambda tmp: _stepwise(sample_weight=with_value(np.zeros(20), 4, 1.0)),
         ValueError,
         r"need at least 2 observations",
     ),

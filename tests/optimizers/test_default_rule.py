@@ -95,7 +95,7 @@ def test_thresholds_are_bonferroni_critical_values():
     n, p = 300, 40
     X = rng.standard_normal((n, p))
     y = X[:, :3] @ [1.0, -1.0, 0.5] + rng.standard_normal(n)
-    opt = FloatingFStepwise(alpha=0.05).fit(X, y)
+    opt = FloatingFStepwise(alpha=0.05, time_ordered=True).fit(X, y)
     model_size = 0
     for step in opt.steps_[0]:
         k = model_size
@@ -125,7 +125,8 @@ def test_effective_observations_of_an_ar1_residual():
     X = rng.standard_normal((n, 3))
     for rho in (0.0, 0.5, 0.8):
         e = ar1(rng, n, rho)
-        opt = FloatingFStepwise(floating=False).fit(X, 3 * X[:, 0] + e)
+        opt = FloatingFStepwise(floating=False, time_ordered=True)
+        opt.fit(X, 3 * X[:, 0] + e)
         table = opt.anova_[0]
         L = table.hac_lags
         k = np.arange(1, L + 1)
@@ -177,10 +178,12 @@ def test_floating_auto_engages_for_smooth_residuals_only():
     rng = np.random.default_rng(4)
     n = 800
     X = rng.standard_normal((n, 10))
-    white = FloatingFStepwise().fit(X, X[:, 0] + rng.standard_normal(n))
+    # independent columns: rows declared in time order (the errors are)
+    white = FloatingFStepwise(time_ordered=True)
+    white.fit(X, X[:, 0] + rng.standard_normal(n))
     assert not white.phase_two_[0] and white.phase_one_lag1_[0] < 0.2
     smooth = X[:, 0] + 0.3 * ar1(rng, n, 0.98)
-    opt = FloatingFStepwise().fit(X, smooth)
+    opt = FloatingFStepwise(time_ordered=True).fit(X, smooth)
     assert opt.phase_two_[0] and opt.phase_one_lag1_[0] > 0.9
     # The target was selected again with the paper's rule: same steps.
     paper = FloatingFStepwise.paper().fit(X, smooth)
@@ -190,7 +193,7 @@ def test_floating_auto_engages_for_smooth_residuals_only():
     np.testing.assert_array_equal(opt.coef_, paper.coef_)
     assert len(opt.history_) == len(paper.history_)
     assert not opt.anova_[0].robust
-    forced = FloatingFStepwise(floating=False).fit(X, smooth)
+    forced = FloatingFStepwise(floating=False, time_ordered=True).fit(X, smooth)
     assert not forced.phase_two_[0] and forced.anova_[0].robust
     assert "is applied instead: target(s) 0" in opt.summary()
     assert "is applied instead: target(s) none" in white.summary()
@@ -205,8 +208,9 @@ def test_default_weights_are_scale_free():
     n = 300
     X = rng.standard_normal((n, 8))
     y = X[:, 1] - 0.4 * X[:, 5] + 0.5 * rng.standard_normal(n)
-    base = FloatingFStepwise().fit(X, y)
-    tripled = FloatingFStepwise().fit(X, y, sample_weight=np.full(n, 3.0))
+    base = FloatingFStepwise(time_ordered=True).fit(X, y)
+    tripled = FloatingFStepwise(time_ordered=True)
+    tripled.fit(X, y, sample_weight=np.full(n, 3.0))
     assert [(s.action, s.feature) for s in base.steps_[0]] == [
         (s.action, s.feature) for s in tripled.steps_[0]
     ]
@@ -219,9 +223,8 @@ def test_default_weights_are_scale_free():
     # With unequal weights the coefficients are weighted least squares on
     # the selected support (an independent lstsq).
     w = rng.uniform(0.5, 2.0, n)
-    opt = FloatingFStepwise(drop_insignificant_constant=False).fit(
-        X, y, sample_weight=w
-    )
+    opt = FloatingFStepwise(drop_insignificant_constant=False, fit_intercept=True)
+    opt.fit(X, y, sample_weight=w)
     cols = np.flatnonzero(opt.coef_[0])
     A = np.column_stack([np.ones(n), X[:, cols]]) * np.sqrt(w)[:, None]
     ref = np.linalg.lstsq(A, y * np.sqrt(w), rcond=None)[0]
@@ -248,7 +251,8 @@ def test_paper_is_the_previous_default():
 def test_summary_shows_the_robust_statistics():
     rng = np.random.default_rng(7)
     X = rng.standard_normal((200, 6))
-    opt = FloatingFStepwise().fit(X, 2 * X[:, 0] + rng.standard_normal(200))
+    opt = FloatingFStepwise(time_ordered=True)
+    opt.fit(X, 2 * X[:, 0] + rng.standard_normal(200))
     s = opt.summary(feature_names=list("abcdef"))
     for phrase in (
         "family-wise alpha = 0.01",
@@ -270,7 +274,8 @@ def test_summary_shows_the_robust_statistics():
         (dict(alpha=0.0), ValueError, "alpha must be finite and > 0"),
         (dict(alpha=1.5), ValueError, "alpha must lie strictly between 0 and 1"),
         (dict(autocorrelation="hac"), ValueError, "autocorrelation must be"),
-        (dict(floating="sometimes"), TypeError, "floating must be True or False"),
+        (dict(floating="sometimes"), ValueError, "floating must be True or False"),
+        (dict(floating="None"), ValueError, "floating must be True or False"),
         (dict(f_remove=3.0), ValueError, "f_remove requires f_enter"),
         (dict(f_enter=10.0, alpha_enter=0.05), ValueError, "not both"),
     ],

@@ -21,6 +21,7 @@ from scipy import stats
 from sklearn.exceptions import ConvergenceWarning
 
 from pysindy_mme.optimizers import (
+    ConstantNotInLibraryWarning,
     ExcludedFeaturesWarning,
     FloatingFStepwise,
     StepwiseCycleWarning,
@@ -62,7 +63,10 @@ def f_remove_brute(X, y, model, j):
 # --------------------------------------------------------------- Hald / Draper & Smith
 def test_hald_draper_smith_sequence(hald):
     X, y = hald
-    opt = FloatingFStepwise(f_enter=4, f_remove=4, floating=False).fit(X, y)
+    # fit_intercept: Hald's model has a constant, and no column carries it
+    opt = FloatingFStepwise(
+        f_enter=4, f_remove=4, floating=False, fit_intercept=True
+    ).fit(X, y)
     steps = opt.steps_[0]
     # Draper & Smith: x4 enters, x1 enters, x2 enters, x4 leaves.
     assert [(s.action, s.feature) for s in steps] == [
@@ -270,10 +274,16 @@ def test_phase_two_removes_weak_but_significant_term():
     # A looser ratio keeps it.
     loose = FloatingFStepwise.paper(float_ratio=1e4).fit(X, y)
     assert set(np.flatnonzero(loose.coef_[0])) == {0, 1}
-    # The default keeps it too: white residuals do not engage Phase II.
-    default = FloatingFStepwise().fit(X, y)
+    # The default keeps it too when rows are in time order: white residuals
+    # do not engage Phase II.
+    default = FloatingFStepwise(time_ordered=True).fit(X, y)
     assert set(np.flatnonzero(default.coef_[0])) == {0, 1}
     assert not default.phase_two_[0] and abs(default.phase_one_lag1_[0]) < 0.2
+    # These rows (independent draws) do not look like samples in time order:
+    # the default then uses the ordinary test and Phase II (time_ordered).
+    auto = FloatingFStepwise().fit(X, y)
+    assert not auto.rows_in_time_order_ and auto.phase_two_[0]
+    assert set(np.flatnonzero(auto.coef_[0])) == {0}
 
 
 def test_phase_two_cycle_resolved_by_overall_f():
@@ -336,7 +346,8 @@ def test_intercept_kept_or_dropped():
     noise = 0.1 * rng.standard_normal(n)
     y0 = 2 * X[:, 0] + noise - noise.mean()  # no constant at all
     y1 = 2 * X[:, 0] + 1.5 + noise
-    opt = FloatingFStepwise().fit(X, np.column_stack([y0, y1]))
+    Y = np.column_stack([y0, y1])
+    opt = FloatingFStepwise(fit_intercept=True).fit(X, Y)
     assert opt.intercept_dropped_.tolist() == [True, False]
     assert opt.intercept_[0] == 0.0
     assert opt.intercept_[1] == pytest.approx(1.5, abs=0.05)
@@ -347,9 +358,25 @@ def test_intercept_kept_or_dropped():
     assert opt.anova_[0].has_intercept
     with_c = np.linalg.lstsq(np.column_stack([np.ones(n), X[:, 0]]), y0, rcond=None)
     assert opt.anova_[0].intercept == pytest.approx(with_c[0][0], abs=1e-12)
-    kept = FloatingFStepwise(drop_insignificant_constant=False).fit(X, y0)
+    kept = FloatingFStepwise(drop_insignificant_constant=False, fit_intercept=True)
+    kept.fit(X, y0)
     assert not kept.intercept_dropped_[0]
     assert kept.coef_[0, 0] == pytest.approx(with_c[0][1], rel=1e-12)
+    # The default (pysindy's convention, no constant column here): always
+    # through the origin, intercept_ 0, and a warning where the constant
+    # was significant.
+    with pytest.warns(
+        ConstantNotInLibraryWarning, match="constant is significant in target 1"
+    ):
+        default = FloatingFStepwise().fit(X, Y)
+    assert default.intercept_dropped_.tolist() == [True, True]
+    np.testing.assert_array_equal(default.intercept_, 0.0)
+    np.testing.assert_array_equal(default.coef_[0], opt.coef_[0])
+    through1 = np.linalg.lstsq(X[:, default.ind_[1]], y1, rcond=None)[0]
+    np.testing.assert_allclose(default.coef_[1, default.ind_[1]], through1, rtol=1e-12)
+    assert "fit_intercept is False: coef_ is refit through the origin" in str(
+        default.summary()
+    )
 
 
 def test_constant_library_column_carries_intercept():
@@ -363,7 +390,7 @@ def test_constant_library_column_carries_intercept():
     assert opt.intercept_[0] == 0.0
     assert opt.coef_[0, 0] * 2.0 == pytest.approx(opt.anova_[0].intercept, rel=1e-12)
     np.testing.assert_allclose(
-        opt.predict(X)[:, 0],
+        opt.predict(X),  # 1-D, as y
         opt.anova_[0].intercept + opt.anova_[0].coefficients[0] * Z[:, 1],
         rtol=1e-12,
     )
@@ -436,7 +463,7 @@ def test_ill_conditioned_coefficients_match_exact_solution():
     A = np.column_stack([np.ones(n), a, b, c])
     assert 1e9 < np.linalg.cond(A) < 1e10
     y = 0.5 + A[:, 1:] @ np.array([2.0, -1.5, 0.75])
-    opt = FloatingFStepwise(tolerance=1e-12).fit(X, y)
+    opt = FloatingFStepwise(tolerance=1e-12, fit_intercept=True).fit(X, y)
     assert set(np.flatnonzero(opt.coef_[0])) == {0, 1, 2}
     exact = exact_lstsq(A, y)
     got = np.r_[opt.intercept_[0], opt.coef_[0, :3]]
@@ -469,12 +496,12 @@ def test_constant_target_is_not_an_error(value):
     y = np.full(50, value)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no division or convergence warnings
-        opt = FloatingFStepwise().fit(X, y)
+        opt = FloatingFStepwise(fit_intercept=True).fit(X, y)
         text = opt.summary()
     assert not np.any(opt.coef_)
     assert opt.steps_ == [[]]
     assert opt.intercept_[0] == pytest.approx(value, abs=1e-14)
-    np.testing.assert_allclose(opt.predict(X)[:, 0], value, atol=1e-14)
+    np.testing.assert_allclose(opt.predict(X), value, atol=1e-14)
     assert "no function entered" in text
 
 

@@ -23,6 +23,7 @@ from sklearn.exceptions import ConvergenceWarning, NotFittedError
 from sklearn.utils.validation import check_is_fitted
 
 from pysindy_mme import FloatingFStepwise, systems
+from pysindy_mme.optimizers import ConstantNotInLibraryWarning
 
 
 @pytest.fixture(scope="module")
@@ -183,7 +184,7 @@ def test_fit_on_constant_derivatives(data, request):
     x, x_dot = request.getfixturevalue(data)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        opt = FloatingFStepwise().fit(x, x_dot)
+        opt = FloatingFStepwise(fit_intercept=True).fit(x, x_dot)
     # The two ramps of ramp_2d are collinear: the second is set aside.
     assert len(caught) == (1 if x.shape[1] == 2 else 0)
     assert opt.excluded_ == ({1: "collinear with f0"} if x.shape[1] == 2 else {})
@@ -194,6 +195,13 @@ def test_fit_on_constant_derivatives(data, request):
     assert not np.any(opt.coef_)
     assert opt.complexity == np.count_nonzero(opt.intercept_) == x_dot.shape[1]
     np.testing.assert_allclose(opt.predict(x), x_dot, rtol=1e-12)
+    # pysindy's convention (the default): the library has no constant column,
+    # so the model is through the origin and predicts what coef_ says; a
+    # warning says the constant was significant.
+    with pytest.warns(ConstantNotInLibraryWarning, match="constant is significant"):
+        origin = FloatingFStepwise().fit(x, x_dot)
+    np.testing.assert_array_equal(origin.intercept_, 0.0)
+    np.testing.assert_allclose(origin.predict(x), x @ origin.coef_.T, rtol=1e-12)
 
 
 def test_not_fitted_errors():
@@ -210,7 +218,8 @@ def test_complexity_counts_terms(ramp_2d):
     rng = np.random.default_rng(3)
     X = rng.standard_normal((80, 6))
     Y = np.column_stack([X[:, 1] + 3, X[:, 2] - X[:, 4]])
-    opt = FloatingFStepwise().fit(X, Y + 0.01 * rng.standard_normal((80, 2)))
+    opt = FloatingFStepwise(fit_intercept=True)
+    opt.fit(X, Y + 0.01 * rng.standard_normal((80, 2)))
     assert opt.complexity == 4  # x1 and the intercept; x2 and x4
 
 

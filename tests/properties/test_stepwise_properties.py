@@ -18,6 +18,7 @@ received.
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -31,6 +32,7 @@ from pysindy_mme import (
     FloatingFStepwise,
     StepwiseCycleWarning,
 )
+from pysindy_mme.optimizers import ConstantNotInLibraryWarning
 
 
 @st.composite
@@ -91,7 +93,11 @@ def _fit(X, Y, sample_weight=None, **params):
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         opt = FloatingFStepwise(**params).fit(X, Y, sample_weight=sample_weight)
-    allowed = {ExcludedFeaturesWarning, StepwiseCycleWarning}
+    allowed = {
+        ExcludedFeaturesWarning,
+        StepwiseCycleWarning,
+        ConstantNotInLibraryWarning,
+    }
     assert warning_types(record) <= allowed, [str(w.message) for w in record]
     return opt
 
@@ -191,6 +197,21 @@ def test_stepwise_nonfinite_target_is_a_documented_error(problem, data, case_cou
     Y = Y.copy()
     Y[r, c] = value
     kind = "NaN" if np.isnan(value) else "inf"
+    if kind == "NaN" and Y.shape[1] == 1:
+        # A row whose targets are all NaN is dropped, as pysindy's
+        # BaseOptimizer.fit drops it: the fit is the fit without that row.
+        keep = np.arange(Y.shape[0]) != r
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                ref = FloatingFStepwise().fit(X[keep], Y[keep])
+            except ValueError as exc:
+                with pytest.raises(ValueError, match=re.escape(str(exc)[:20])):
+                    FloatingFStepwise().fit(readonly(X), readonly(Y))
+                return
+            got = FloatingFStepwise().fit(readonly(X), readonly(Y))
+        np.testing.assert_array_equal(got.coef_, ref.coef_)
+        return
     with pytest.raises(ValueError, match=rf"y \(the target\) contains {kind}"):
         FloatingFStepwise().fit(readonly(X), readonly(Y))
 
