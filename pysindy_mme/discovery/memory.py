@@ -172,7 +172,9 @@ def memory_evidence(x, d, u=None, error_states=None, starts=(0,)) -> list:
             r2 = _cv_r2(np.hstack([static, past]), target, ok)
             if r2 > best:
                 best, best_lag = r2, lag
-        unexplained = max(1.0 - r2_static, 1e-12)
+        # a static fit worse than the mean (R^2 < 0) explains nothing: it must
+        # not make the unexplained share look larger than all of d
+        unexplained = max(1.0 - max(r2_static, 0.0), 1e-12)
         suspected = bool(
             best - r2_static >= MEMORY_GAIN
             and (1.0 - best) <= MEMORY_RATIO * unexplained

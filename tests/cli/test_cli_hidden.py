@@ -175,7 +175,9 @@ library = ps.GeneralizedLibrary([power], inputs_per_library=[[1, 2]])
 def hysteresis_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("hysteresis")
     machine = hysteretic_oscillator()
-    record = machine.record(seed=3, n_samples=1500)
+    # the memory test needs a few thousand samples (at 1,500 the states' past
+    # explains 43 % of this model error, short of the rule's half)
+    record = machine.record(seed=3, n_samples=4096)
     rows = ["t,y,u"] + [
         f"{t:.8g},{y:.10g},{u:.10g}"
         for t, y, u in zip(record.t, record.y[:, 0], record.u[:, 0])
