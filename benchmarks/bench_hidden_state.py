@@ -61,6 +61,7 @@ import numpy as np
 import pysindy as ps
 
 from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme.discovery.memory import MEMORY_GAIN, MEMORY_RATIO
 from pysindy_mme.feature_library import Coulomb, Stribeck, ViscousSplit
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import (
@@ -423,6 +424,7 @@ def nulls(args):
                         f"{ev.r2_static:.3f}",
                         f"{ev.r2_history:.3f}",
                         f"{ev.r2_history - ev.r2_static:+.3f}",
+                        f"{_ratio(ev):.2f}",
                         str(ev.lag),
                         "YES" if ev.suspected else "no",
                         res.conclusion,
@@ -443,6 +445,7 @@ def nulls(args):
             "r2_static",
             "r2_history",
             "gain",
+            "ratio",
             "lag",
             "suspected",
             "conclusion",
@@ -453,9 +456,16 @@ def nulls(args):
     )
     print(
         f"\nFalse alarms: {alarms}/{total} tested equations ({'; '.join(per_case)}). "
-        "A suspicion needs r2_history - r2_static >= 0.25 and the unexplained share "
-        "cut to at most 0.7 of the static one."
+        f"A suspicion needs the unexplained share 1 - r2 cut by the past to at "
+        f"most {MEMORY_RATIO} of the present's (max(r2_static, 0) taken as the "
+        f"present's), and r2_history - r2_static >= {MEMORY_GAIN}; the ratio "
+        "for each row: (1 - r2_history) / (1 - max(r2_static, 0))."
     )
+
+
+def _ratio(ev) -> float:
+    """What the past leaves of what the present leaves unexplained."""
+    return (1 - ev.r2_history) / max(1 - max(ev.r2_static, 0.0), 1e-12)
 
 
 # ---------------------------------------------------------------------------

@@ -14,17 +14,16 @@ like, without assuming a library:
 * the *history* predictability: the same with the states ``x(t - L)`` one
   lag earlier added as coordinates, the best of a few lags ``L``.
 
-Both regressions take ``d_i`` less its least-squares fit on ``[1, x, u]``
-(:func:`_beyond_linear`): a grey box's wrong parameters add a static part
-linear in the states to ``d`` that would swamp the rest.
-
 When history predicts most of what the present leaves unexplained (the
 unexplained share ``1 - r2`` cut to at most :data:`MEMORY_RATIO` of the
-static one, and by at least :data:`MEMORY_GAIN` of the whole), a state the
-model does not have is likely, entering the equation of state ``i``. The
-rule is relative on purpose: how much of ``d_i`` is static depends on how
-far the assumed model's parameters are off (a wrong stiffness adds a
-static ``k y`` to it), not on whether a state is missing.
+static one), a state the model does not have is likely, entering the
+equation of state ``i``. The rule is relative on purpose: how much of
+``d_i`` is static depends on how far the assumed model's parameters are off
+(a wrong stiffness adds a static ``k y`` to it), not on whether a state is
+missing. (Removing the part of ``d_i`` linear in the states first was tried
+and dropped: it removes the static part of the effect but not the part of
+MME's smoothing error that comes with it, so on static effects, a pendulum
+missing gravity, the past then predicted half of what was left.)
 
 Why not a library test: the point is to tell "the library lacks the function"
 from "no function of these states can do it", and only a regression that can
@@ -43,12 +42,13 @@ from sklearn.neighbors import KNeighborsRegressor
 __all__ = ["MemoryEvidence", "memory_evidence", "MEMORY_GAIN", "MEMORY_RATIO"]
 
 #: the history must leave at most this share of what the present leaves
-#: unexplained (measured: a missing hysteretic state 0.34, static effects
-#: of seven textbook systems and three machines 0.73 and above) ...
+#: unexplained (measured on the benchmark's records: a missing hysteretic
+#: state 0.33-0.48; static effects of seven textbook systems and three
+#: machines 0.69 and above, benchmarks/bench_hidden_state.py) ...
 MEMORY_RATIO = 0.5
-#: ... and raise the cross-validated R^2 by at least this much (a static
-#: fit that is already near perfect leaves nothing worth a state)
-MEMORY_GAIN = 0.1
+#: ... and raise the cross-validated R^2 by at least this much (a guard
+#: against ratios of two tiny numbers when the static fit is near perfect)
+MEMORY_GAIN = 0.01
 #: nearest neighbours averaged (a smoother of the d(t)-versus-state relation)
 N_NEIGHBOURS = 10
 #: contiguous cross-validation blocks
@@ -111,21 +111,6 @@ def _cv_r2(features, target, starts_ok) -> float:
     return 1.0 - ssr / total
 
 
-def _beyond_linear(static, d, ok) -> np.ndarray:
-    """``d`` less its least-squares fit on ``[1, x, u]``.
-
-    Wrong parameters of the assumed model add a part linear in the states
-    and inputs to ``d`` (a stiffness off by ``dk`` adds ``-dk y / m``), as
-    large as the guesses are poor; it is static, and would make any memory
-    look small beside it. The test judges what is left.
-    """
-    a = np.column_stack([np.ones(int(np.count_nonzero(ok))), static[ok]])
-    coef = np.linalg.lstsq(a, d[ok], rcond=None)[0]
-    out = np.full_like(d, np.nan)
-    out[ok] = d[ok] - a @ coef
-    return out
-
-
 def _lags(n_samples: int) -> list:
     """Lags tried: 1, 2, 4, ... samples, up to a fiftieth of the record."""
     top = max(1, min(n_samples // 50, 512))
@@ -160,7 +145,7 @@ def memory_evidence(x, d, u=None, error_states=None, starts=(0,)) -> list:
     finite = np.all(np.isfinite(static), axis=1) & np.all(np.isfinite(d), axis=1)
     out = []
     for i in error_states:
-        target = _beyond_linear(static, d[:, i], finite)
+        target = d[:, i]
         r2_static = _cv_r2(static, target, finite)
         best, best_lag = -np.inf, 0
         for lag in _lags(n):
