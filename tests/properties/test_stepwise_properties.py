@@ -115,7 +115,10 @@ def _check_stepwise_result(opt, X, Y, w):
     assert opt.converged_ is True
     # Non-finite columns are set aside (rows of weight 0 are ignored), and
     # set-aside columns are never selected.
-    keep = w > 0
+    # rows whose library values or targets are all NaN are dropped first,
+    # as pysindy's BaseOptimizer.fit drops them
+    all_nan = np.all(np.isnan(X), axis=1) | np.all(np.isnan(Y), axis=1)
+    keep = (w > 0) & ~all_nan
     nonfinite = np.flatnonzero(~np.all(np.isfinite(X[keep]), axis=0)).tolist()
     assert set(nonfinite) <= set(opt.excluded_)
     used = set(np.flatnonzero(np.any(opt.coef_ != 0, axis=0)).tolist())
