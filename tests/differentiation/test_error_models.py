@@ -106,3 +106,32 @@ def test_an_unregistered_subclass_works_through_mme():
     assert np.max(np.abs(damped.d_ - walk.d_)) > 1e-3  # the rate matters
     nearly_walk = _fit(_Damped(tau=1e9))
     np.testing.assert_allclose(nearly_walk.d_, walk.d_, atol=1e-6)
+
+
+class _DampedWithPrior(_Damped):
+    """``_Damped`` with a prior ``N(0, P)`` on each record's initial ``d``."""
+
+    def __init__(self, tau=1.0, P=1.0):
+        self.tau, self.P = tau, P
+
+    def initial_covariance(self, W):
+        return self.P * np.eye(np.shape(W)[0])
+
+
+def test_a_prior_on_the_initial_model_error():
+    """A vague prior is the flat one; a tight one pins d_0 to 0.
+
+    With ``P`` far above the flat posterior variance of ``d_0`` the estimate
+    is the flat prior's and ``-2 log p`` gains ``log(2 pi P)`` (the exact
+    reference, a Kalman filter with the stationary prior, is in
+    ``test_gauss_markov.py``).
+    """
+    flat = _fit(_Damped(tau=0.5))
+    vague = _fit(_DampedWithPrior(tau=0.5, P=1e10))
+    np.testing.assert_allclose(vague.smoothed_x_, flat.smoothed_x_, atol=1e-6)
+    np.testing.assert_allclose(vague.d_, flat.d_, atol=1e-6)
+    assert -2 * (vague.log_likelihood_ - flat.log_likelihood_) == pytest.approx(
+        np.log(2 * np.pi * 1e10), abs=1e-3
+    )
+    tight = _fit(_DampedWithPrior(tau=0.5, P=1e-12))
+    assert abs(tight.d_[0, 1]) < 1e-4 < abs(flat.d_[0, 1])

@@ -186,15 +186,24 @@ class AugmentedModel(ModelFunction):
 class AugmentedErrorModel(ErrorModel):
     """An error model with ``d`` as extra states: ``d' = F d + w``.
 
-    Subclasses give ``F`` (:meth:`rate`); the solver then estimates ``d``
-    as a continuous state and ``W`` weighs the rate ``w``. An error state
-    is observable exactly when the state it enters is, so the checks MME
-    made on the problem as stated hold for the augmented one.
+    Subclasses give ``F`` (:meth:`rate`) and, when ``d`` has a stationary
+    distribution, the prior on each record's initial ``d``
+    (:meth:`initial_covariance`; flat by default); the solver then
+    estimates ``d`` as a continuous state and ``W`` weighs the rate ``w``.
+    An error state is observable exactly when the state it enters is, so
+    the checks MME made on the problem as stated hold for the augmented
+    one.
     """
 
     def rate(self, q: int) -> np.ndarray:
         """``F``, the ``(q, q)`` dynamics of the model error."""
         raise NotImplementedError
+
+    def initial_covariance(self, W):
+        """Covariance ``P`` of each record's initial ``d`` (prior ``N(0, P)``)
+        for the weight ``W`` (``(q, q)``, user units), or None: a flat prior,
+        the default (a random walk has no stationary distribution)."""
+        return None
 
     def smoother(self, inputs: SolverInputs):
         model, es = inputs.model, np.asarray(inputs.error_states, dtype=int)
@@ -204,6 +213,7 @@ class AugmentedErrorModel(ErrorModel):
             inputs.measurement, inputs.measurement_jacobian, n, q
         )
         smoother = inputs.build(aug_model, n + np.arange(q), measurement, g_jac)
+        smoother.initial_prior = _InitialPrior(self, n + np.arange(q))
         # d_j, the model error of state j, in singularity diagnostics
         smoother.state_labels = [f"x{i}" for i in range(n)] + [
             f"d{i} (model error of x{i})" for i in es
@@ -215,6 +225,17 @@ class AugmentedErrorModel(ErrorModel):
         return ErrorReading(
             d=d, d_intervals=0.5 * (d[1:] + d[:-1]), model=smoother.model.base
         )
+
+
+class _InitialPrior:
+    """``W -> (states, P)`` or None: the solver's ``initial_prior`` hook."""
+
+    def __init__(self, model, states):
+        self.model, self.states = model, states
+
+    def __call__(self, W):
+        P = self.model.initial_covariance(W)
+        return None if P is None else (self.states, P)
 
 
 def _augmented_measurement(measurement, g_jac, n, q):
