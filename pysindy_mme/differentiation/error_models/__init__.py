@@ -21,11 +21,12 @@ from .base import (
     ErrorReading,
     SolverInputs,
 )
+from .gauss_markov import GaussMarkov
 from .random_walk import RandomWalk
 from .white import WhiteNoise
 
 #: Every registered error model, in the order help texts list them.
-ERROR_MODELS = (WhiteNoise, RandomWalk)
+ERROR_MODELS = (WhiteNoise, RandomWalk, GaussMarkov)
 
 __all__ = [
     "ERROR_MODELS",
