@@ -2,12 +2,14 @@
 
 The paper's case (alpha = 1, x0 = [1, 0], x1 measured with noise variance
 0.01 at 40 Hz for 10 s, ignorance model x1' = x2, x2' = d): for each error
-model ("white", the paper's; "random_walk", d continuous with W on its rate)
-and each W rule ("auto", the covariance constraint; "ml", the marginal
+model ("white", the paper's; "random_walk", d continuous with W on its rate;
+"gauss_markov", d' = -d/tau + w with tau estimated by the likelihood) and
+each W rule ("auto", the covariance constraint; "ml", the marginal
 likelihood), the median over the seeds of the estimate-minus-truth variances
-of x1, x2 and d, the covariance ratio and the time per fit. The "best W per
-seed" rows pick, for every seed, the W on a grid that minimises the d error
-with the truth known: a floor no W rule can beat.
+of x1, x2 and d, the covariance ratio, W, tau and the time per fit. The
+"best W per seed" rows pick, for every seed, the W (and for gauss_markov the
+tau) on a grid that minimises the d error with the truth known: a floor no
+rule can beat.
 
     python benchmarks/bench_mme_accuracy.py [--seeds 20]
 """
@@ -21,13 +23,24 @@ import warnings
 import numpy as np
 
 from pysindy_mme import MME, systems
+from pysindy_mme.differentiation.error_models import GaussMarkov
 
-ERROR_MODELS = ("white", "random_walk")
+ERROR_MODELS = ("white", "random_walk", "gauss_markov")
 # W grid of the best-per-seed rows, decades around the rules' choices
 W_GRID = {
     "white": np.logspace(-1.5, 2.5, 33),
     "random_walk": np.logspace(-3.5, 0.5, 33),
+    "gauss_markov": np.logspace(-3.5, 0.5, 33),
 }
+# tau grid of gauss_markov's best-per-seed row (the record is 10 s long)
+TAU_GRID = (0.1, 0.3, 1.0, 3.0, 10.0)
+
+
+def trial_models(error_model):
+    """The error models of the best-per-seed grid."""
+    if error_model == "gauss_markov":
+        return [GaussMarkov(tau=tau) for tau in TAU_GRID]
+    return [error_model]
 
 
 def errors(est, m):
@@ -38,6 +51,7 @@ def errors(est, m):
         np.var(est.d_[:, 1] - m.d[:, 1]),
         est.covariance_ratio_[0],
         float(est.W_),
+        getattr(est.error_model_, "tau_", np.nan),
     )
 
 
@@ -75,11 +89,20 @@ def main(argv=None):
         best = []
         for m in data:
             trials = [
-                errors(fit(system, m, error_model, w), m) for w in W_GRID[error_model]
+                errors(fit(system, m, model, w), m)
+                for model in trial_models(error_model)
+                for w in W_GRID[error_model]
             ]
             best.append(min(trials, key=lambda r: r[2]))
         rows.append(
-            (error_model, "best W per seed (truth known)", np.median(best, 0), None)
+            (
+                error_model,
+                "best W per seed (truth known)"
+                if error_model != "gauss_markov"
+                else "best W and tau per seed (truth known)",
+                np.median(best, 0),
+                None,
+            )
         )
 
     print(
@@ -87,15 +110,16 @@ def main(argv=None):
     )
     print(
         "| error model | W | var x1 err | var x2 err | var d err | cov. ratio "
-        "| W | s/fit |"
+        "| W | tau | s/fit |"
     )
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for error_model, rule, med, sec in rows:
-        x1, x2, d, ratio, W = med
+        x1, x2, d, ratio, W, tau = med
         timing = "" if sec is None else f"{sec:.3f}"
+        tau_text = "" if np.isnan(tau) else f"{tau:.3g}"
         print(
             f"| {error_model} | {rule} | {x1:.5f} | {x2:.4f} | {d:.3f} | "
-            f"{ratio:.3f} | {W:.3g} | {timing} |"
+            f"{ratio:.3f} | {W:.3g} | {tau_text} | {timing} |"
         )
     print(
         "\nBrief (issue 3, line 1): x1 <= 0.0010, x2 <= 0.011, d <= 0.19, ratio "

@@ -27,11 +27,13 @@ def _discretise(A, B, h):
     return E[:n, :n], E[:n, n:]
 
 
-def kalman_rts(A, B, C, R, W, y, t, p0=1e8):
+def kalman_rts(A, B, C, R, W, y, t, p0=1e8, prior=None):
     """Kalman filter + RTS smoother for x' = A x + B d, y = C x + v.
 
     ``d`` is constant on each interval with covariance ``(h W)^-1``, which is
-    the ZOH reading of the MME cost; the prior on ``x_0`` is ``N(0, p0 I)``.
+    the ZOH reading of the MME cost; the prior on ``x_0`` is ``N(0, p0 I)``,
+    except for the states ``prior = (states, P)`` names, whose prior is the
+    proper ``N(0, P)`` (an error model's stationary ``d_0``).
     Missing measurements (NaN) are skipped. (``p0 = 1e10`` would lose about
     six digits to cancellation in the covariance update; ``1e8`` is diffuse
     enough that its pull on the estimate is below 1e-7.) Returns the
@@ -46,6 +48,11 @@ def kalman_rts(A, B, C, R, W, y, t, p0=1e8):
     Pp = np.zeros((N, n, n))
     Phis, Gams = [], []
     x, P = np.zeros(n), p0 * np.eye(n)
+    n_diffuse = n
+    if prior is not None:
+        idx = np.asarray(prior[0], dtype=int)
+        P[np.ix_(idx, idx)] = prior[1]
+        n_diffuse = n - idx.size
     n2ll = 0.0
     for k in range(N):
         if k > 0:
@@ -79,7 +86,7 @@ def kalman_rts(A, B, C, R, W, y, t, p0=1e8):
         ds[k] = (
             (Winv / h) @ Gams[k].T @ np.linalg.solve(Pp[k + 1], xs[k + 1] - xp[k + 1])
         )
-    # remove the prior's normalisation: a flat prior has density 1, the
-    # N(0, p0 I) prior (2 pi p0)^{-n/2}
-    n2ll -= n * np.log(2 * np.pi * p0)
+    # remove the diffuse prior's normalisation: a flat prior has density 1,
+    # the N(0, p0 I) prior (2 pi p0)^{-n/2}
+    n2ll -= n_diffuse * np.log(2 * np.pi * p0)
     return xs, ds, n2ll

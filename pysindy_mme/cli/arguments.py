@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.integrate import HOLDS
+from ..differentiation.error_models import error_model_names
 from .loading import (
     UsageError,
     load_csv,
@@ -427,9 +428,10 @@ def build_request(args) -> Request:
         raise UsageError(
             f"--input-hold must be one of {', '.join(HOLDS)}, got {args.input_hold!r}"
         )
-    if args.error_model not in ("white", "random_walk"):
+    if args.error_model not in error_model_names():
         raise UsageError(
-            f"--error-model must be white or random_walk, got {args.error_model!r}"
+            f"--error-model must be one of {', '.join(error_model_names())}, got "
+            f"{args.error_model!r}"
         )
     model, path = load_model(args.model)
     _check_signature(model, args, bool(inputs))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..core.integrate import HOLDS
+from ..differentiation.error_models import ERROR_MODELS
 
 __all__ = ["build_parser", "DISCOVER_EXAMPLES"]
 
@@ -107,9 +108,7 @@ HELP = {
     "integration step. Default: 1. Example: --substeps 4",
     "--alpha": "significance level of the tests (consistency, each term, the "
     "extended model against the assumed one). Default: 0.001. Example: --alpha 0.01",
-    "--error-model": "MME's prior on d(t): white (the paper) or random_walk "
-    "(a smooth d, usually better for a missing term of the state). "
-    "Default: white. Example: --error-model random_walk",
+    "--error-model": None,  # built from the registry of error models
     "--offsets": "estimate a constant offset per measured column (y = state + "
     "offset, e.g. a sensor's bias) instead of letting the dynamics absorb it. "
     "Default: off. Example: --offsets",
@@ -141,8 +140,22 @@ def _hold_help() -> str:
     )
 
 
+def _error_model_help() -> str:
+    kinds = "; ".join(
+        cls.summary + (f" (alias {', '.join(cls.aliases)})" if cls.aliases else "")
+        for cls in ERROR_MODELS
+    )
+    return (
+        f"MME's prior on d(t): {kinds}. Default: white. "
+        "Example: --error-model random_walk"
+    )
+
+
+BUILT_HELP = {"--input-hold": _hold_help, "--error-model": _error_model_help}
+
+
 def _add(parser, flag, **kwargs):
-    text = _hold_help() if flag == "--input-hold" else HELP[flag]
+    text = BUILT_HELP[flag]() if flag in BUILT_HELP else HELP[flag]
     parser.add_argument(flag, help=text, **kwargs)
 
 
@@ -175,7 +188,12 @@ def _discover_parser(sub):
     _add(disc, "--validation-window", metavar="N")
     _add(disc, "--substeps", metavar="N")
     _add(disc, "--alpha", default="0.001", metavar="P")
-    _add(disc, "--error-model", default="white", metavar="white|random_walk")
+    _add(
+        disc,
+        "--error-model",
+        default="white",
+        metavar="|".join(c.name for c in ERROR_MODELS),
+    )
     _add(disc, "--offsets", action="store_true")
     _add(disc, "--clipped", default="auto", metavar="auto|keep")
     _add(disc, "--out", default="mme_output", metavar="FOLDER")

@@ -5,8 +5,9 @@ the problem and chooses ``W`` (``weight.py``: covariance constraint or
 marginal likelihood). The estimate itself is computed by direct
 transcription (``transcription.py``: Gauss-Newton over every sample's state,
 ``kkt.py``: the banded KKT system), with the observability checks in
-``observability.py``, the noise in ``noise.py`` and the smooth error model in
-``random_walk.py``. The same solver fits output-error models for the study.
+``observability.py``, the noise in ``noise.py`` and the priors on the model
+error (white, random walk, ...) as objects in ``error_models/``, with their
+registry. The same solver fits output-error models for the study.
 """
 
 from .mme import MME

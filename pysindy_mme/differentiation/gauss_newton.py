@@ -41,7 +41,8 @@ class GaussNewton:
         """:meth:`solve` in internal units from the linearisation ``lin``."""
         Winv = np.linalg.inv(W) if self.q else W
         x, d, theta = lin.x, lin.d, lin.theta
-        meas = self.measurement_cost(lin.r)
+        # the data's cost, with the prior on the initial states if any
+        meas = self.measurement_cost(lin.r) + self.prior_cost(x)
         mu = 0.0
         converged, deficient = False, False
         message = f"reached max_iter = {self.max_iter}"
@@ -68,9 +69,11 @@ class GaussNewton:
             mu = max(mu, 2.0 * float(np.max(np.abs(lam), initial=0.0)) * 1.5)
             cost0 = meas + self.model_error_cost(d, W)
             phi0 = cost0 + mu * defect_l1
-            grad_dot_p = -2.0 * float(
-                np.einsum("kb,kb->", lin.r, self._apply_R_H(lin, dx, dth))
-            ) + 2.0 * float(np.einsum("k,ki,ij,kj->", self.h, d, W, dd))
+            grad_dot_p = (
+                -2.0 * float(np.einsum("kb,kb->", lin.r, self._apply_R_H(lin, dx, dth)))
+                + 2.0 * float(np.einsum("k,ki,ij,kj->", self.h, d, W, dd))
+                + self.prior_cost(x, dx)
+            )
             slope = grad_dot_p - mu * defect_l1
             if -slope <= self.tol * max(phi0, np.finfo(float).tiny):
                 # Stationary to within tol: take the (tiny) step and stop.
@@ -86,7 +89,9 @@ class GaussNewton:
                     tht = self._on_box(tht, active if alpha == 1.0 else None)
                 with np.errstate(all="ignore"):
                     phi_t = self.flow(xt, dt_, tht, jacobian=False)
-                    meas_t = self.measurement_cost(self.residuals(xt, tht))
+                    meas_t = self.measurement_cost(
+                        self.residuals(xt, tht)
+                    ) + self.prior_cost(xt)
                     merit = (
                         meas_t
                         + self.model_error_cost(dt_, W)
@@ -112,7 +117,7 @@ class GaussNewton:
                 message = "converged (the merit function stopped decreasing)"
                 break
             previous, lin = lin, self.linearize(x, d, theta)
-            meas = self.measurement_cost(lin.r)
+            meas = self.measurement_cost(lin.r) + self.prior_cost(x)
             if alpha == 1.0 and self._same_quadratic_model(previous, lin):
                 # The problem is linear-quadratic (a linear model and
                 # measurement): the full step solved it exactly, and the next
@@ -158,10 +163,12 @@ class GaussNewton:
         if not (np.isfinite(x).all() and np.isfinite(theta).all()):
             raise DivergenceError("the estimate diverged to non-finite values")
         mec = self.model_error_cost(d, W)
-        cost = meas + mec
+        cost = meas + mec + self.prior_cost(x)
         n2ll = (
             cost + logdet + self._logdetR + (self.n_obs - self.n) * np.log(2.0 * np.pi)
         )
+        if self._prior is not None:
+            n2ll += self._prior[2]
         return SmootherResult(
             W=W,
             x=x,

@@ -25,11 +25,11 @@ from ..core.validation import (
     check_time,
 )
 from ..exceptions import DivergenceError
+from .error_models import ErrorModel, SolverInputs
 from .mme_checks import MMEChecks
 from .noise import difference_noise_variance, noise_covariance
-from .random_walk import RandomWalkModel, random_walk_problem
 from .transcription import MMESmoother
-from .weight import WSearch, channel_ratios, search_W
+from .weight import WSearch, channel_ratios
 
 __all__ = ["MME", "MMEProblem", "difference_noise_variance", "noise_covariance"]
 
@@ -42,6 +42,9 @@ class MMEProblem:
     ----------
     smoother : MMESmoother
         The solver, set up (``error_model`` applied).
+    error_model : ErrorModel
+        The prior on ``d``, resolved (a copy of an object, or the model a
+        name stands for) and checked.
     W_spec : str or ndarray
         ``"auto"``, ``"ml"`` or the fixed ``(q, q)`` weight.
     noise_covariance : ndarray (m, m)
@@ -72,6 +75,7 @@ class MMEProblem:
     t: np.ndarray
     u: object
     noise_diagnostics: object = None
+    error_model: ErrorModel = None
 
 
 class MME(MMEChecks, BaseDifferentiation):
@@ -117,22 +121,26 @@ class MME(MMEChecks, BaseDifferentiation):
         fast signal for noise) and warns with the value.
     error_states : sequence of int, optional
         States whose equation has a model error (default: all).
-    error_model : {"white", "random_walk"}, default "white"
-        What ``W`` penalises. ``"white"`` (the paper): the model error itself,
-        ``integral d^T W d dt``, with ``d`` held constant between samples; the
-        estimate of ``d`` is as rough as the data allow (for a measured
-        position and an error in its acceleration, ``d`` is the second
-        derivative of a cubic smoothing spline). ``"random_walk"``: ``d`` is a
-        continuous extra state and ``W`` weighs its rate,
-        ``integral d'^T W d' dt`` (``d`` a random walk, in Kalman-filter
-        terms); the right prior for a smooth model error such as a missing
-        term of the state, it gives a markedly better ``d`` and a better
-        estimate of unmeasured states (the paper's Van der Pol record:
-        ``benchmarks/bench_mme_accuracy.py``), at about twice the cost per solve for
-        two states. Everything else (``W`` tuning, outputs) is the same.
+    error_model : str or ErrorModel, default "white"
+        The prior on ``d`` (:mod:`~pysindy_mme.differentiation.error_models`),
+        an object or the name of a registered one. ``"white"`` (the paper,
+        :class:`~.error_models.WhiteNoise`): ``W`` weighs the model error
+        itself, ``integral d^T W d dt``, with ``d`` held constant between
+        samples; the estimate of ``d`` is as rough as the data allow (for a
+        measured position and an error in its acceleration, ``d`` is the
+        second derivative of a cubic smoothing spline). ``"random_walk"``
+        (:class:`~.error_models.RandomWalk`): ``d`` is a continuous extra
+        state and ``W`` weighs its rate, ``integral d'^T W d' dt`` (``d`` a
+        random walk, in Kalman-filter terms); the right prior for a smooth
+        model error such as a missing term of the state, it gives a markedly
+        better ``d`` and a better estimate of unmeasured states (the paper's
+        Van der Pol record: ``benchmarks/bench_mme_accuracy.py``), at about
+        twice the cost per solve for two states. The registry lists the
+        others. Everything else (``W`` tuning, outputs) is the same.
     W : "auto", "ml", float, array-like (q,) or (q, q)
-        Weight of the model-error integral (of its rate with
-        ``error_model="random_walk"``). ``"auto"`` (the paper): a scalar
+        Weight of the model-error integral (of the rate that drives ``d``
+        when the error model makes ``d`` a state). ``"auto"`` (the paper): a
+        scalar
         times the identity chosen so that the mean over measured channels of
         ``mean(r_j^2) / R_jj`` (generally ``trace(R^-1 S) / m``) equals 1, the
         covariance constraint. Residuals of a fit that uses ``edf`` degrees of
@@ -179,13 +187,16 @@ class MME(MMEChecks, BaseDifferentiation):
         Model error at the sample times: the mean of the two adjacent
         zero-order-hold values (the first/last interval's value at the ends);
         zero in states without model error.
-        With ``error_model="random_walk"`` ``d`` is continuous and
-        ``d_`` holds its values at the sample times.
+        With an error model that makes ``d`` a state (``"random_walk"``)
+        ``d`` is continuous and ``d_`` holds its values at the sample times.
     d_intervals_ : ndarray (n_samples - 1, q)
         Model error on each interval ``[t_k, t_{k+1}]`` for the error states
-        (with ``error_model="random_walk"``, its mean over the interval).
+        (with ``d`` a state, its mean over the interval).
     derivative_ : ndarray (n_samples, n_states)
         ``f(x_hat, t, u) + E d_`` at the sample times.
+    error_model_ : ErrorModel
+        The prior used (a copy of ``error_model``, or the model its name
+        stands for), with its own fitted attributes if it has any.
     W_ : float or ndarray (q, q)
         The weight used (a float when it is a scalar multiple of the identity).
     W_at_bound_ : bool
@@ -320,28 +331,15 @@ class MME(MMEChecks, BaseDifferentiation):
         self
         """
         problem = self.check(y, t, u, starts)
-        smoother, W_spec, R, n = (
-            problem.smoother,
-            problem.W_spec,
-            problem.noise_covariance,
-            problem.n_states,
-        )
+        smoother = problem.smoother
 
         def solve(W, start):
             return self._solve(smoother, W, start)
 
-        if isinstance(W_spec, str):
-            search = search_W(smoother, W_spec, solve, self.verbose)
-        else:
-            res = solve(W_spec, None)
-            scalar = np.allclose(W_spec, W_spec[0, 0] * np.eye(W_spec.shape[0]))
-            search = WSearch(
-                result=res,
-                W=float(W_spec[0, 0]) if scalar else W_spec,
-                n_iter=res.n_iter,
-                converged=res.converged,
-            )
-        self._store(smoother, search, R, n)
+        search = problem.error_model.search(
+            smoother, problem.W_spec, solve, self.verbose
+        )
+        self._store(problem, search)
         return self
 
     def check(self, y, t=1.0, u=None, starts=None) -> MMEProblem:
@@ -357,6 +355,7 @@ class MME(MMEChecks, BaseDifferentiation):
         MMEProblem
         """
         n = self._check_settings()
+        error_model = self._check_error_model()
         model = as_model_function(self.assumed_model, n, name="assumed_model")
         if model.n_states != n:
             raise ValueError(
@@ -404,22 +403,18 @@ class MME(MMEChecks, BaseDifferentiation):
                 starts=starts,
             )
 
-        smoother = make_smoother(model, es, measurement, g_jac)
-        self._check_first_evaluation(smoother, model, measurement, es)
-        if self.error_model == "random_walk":
-            # The same problem with d as q extra states (d' = w): the solver
-            # then penalises the rate w with W. An error state is observable
-            # exactly when the state it enters is, so the checks above hold.
-            aug_model, aug_measurement, aug_jac = random_walk_problem(
-                model, es, measurement, g_jac
+        base = make_smoother(model, es, measurement, g_jac)
+        self._check_first_evaluation(base, model, measurement, es)
+        smoother = error_model.smoother(
+            SolverInputs(
+                base=base,
+                model=model,
+                error_states=es,
+                measurement=measurement,
+                measurement_jacobian=g_jac,
+                build=make_smoother,
             )
-            smoother = make_smoother(
-                aug_model, n + np.arange(es.size), aug_measurement, aug_jac
-            )
-            # d_j, the model error of state j, in singularity diagnostics
-            smoother.state_labels = [f"x{i}" for i in range(n)] + [
-                f"d{i} (model error of x{i})" for i in es
-            ]
+        )
         return MMEProblem(
             smoother=smoother,
             W_spec=W_spec,
@@ -433,6 +428,7 @@ class MME(MMEChecks, BaseDifferentiation):
             t=t,
             u=u,
             noise_diagnostics=noise_diagnostics,
+            error_model=error_model,
         )
 
     @staticmethod
@@ -474,39 +470,25 @@ class MME(MMEChecks, BaseDifferentiation):
             ) from None
 
     # -------------------------------------------------------------- output
-    def _store(self, smoother, search: WSearch, R, n):
+    def _store(self, problem: MMEProblem, search: WSearch):
+        smoother, n = problem.smoother, problem.n_states
         res = search.result
-        N = smoother.N
         x = res.x[:, :n]
-        if not isinstance(smoother.model, RandomWalkModel):  # d held per interval
-            es = smoother.es
-            d_int = res.d
-            d_grid = np.empty((N, smoother.q))
-            d_grid[1:-1] = 0.5 * (d_int[1:] + d_int[:-1])
-            d_grid[0] = d_int[0]
-            d_grid[-1] = d_int[-1]
-            for k in smoother.breaks:  # each record's own ends
-                d_grid[k] = d_int[k - 1]
-                d_grid[k + 1] = d_int[k + 1]
-            model = smoother.model
-        else:  # "random_walk": d is the augmented part of the state
-            es = smoother.model.es
-            d_grid = res.x[:, n:]
-            d_int = 0.5 * (d_grid[1:] + d_grid[:-1])
-            model = smoother.model.base
-        d_full = np.zeros((N, n))
-        d_full[:, es] = d_grid
+        reading = problem.error_model.read(smoother, res, n)
+        d_full = np.zeros((smoother.N, n))
+        d_full[:, problem.error_states] = reading.d
         self.t_ = smoother.t.copy()
         self.smoothed_x_ = x
         self.d_ = d_full
-        self.d_intervals_ = d_int
-        self.derivative_ = model(x, smoother.t, smoother.u_grid()) + d_full
+        self.d_intervals_ = reading.d_intervals
+        self.derivative_ = reading.model(x, smoother.t, smoother.u_grid()) + d_full
+        self.error_model_ = problem.error_model
         self.W_ = search.W
         self.W_at_bound_ = bool(search.at_bound)
         self.W_history_ = search.history
         self.covariance_ratio_ = channel_ratios(res, smoother)
         self.residuals_ = res.residuals
-        self.noise_variance_ = R
+        self.noise_variance_ = problem.noise_covariance
         self.cost_ = res.cost
         self.log_likelihood_ = -0.5 * res.neg2_log_likelihood
         self.n_iter_ = res.n_iter

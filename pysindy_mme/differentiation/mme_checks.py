@@ -21,6 +21,7 @@ from ..core.validation import (
     check_indices,
     check_positive_number,
 )
+from .error_models import resolve_error_model
 from .noise import noise_covariance
 from .observability import unobservable_states
 
@@ -45,11 +46,6 @@ class MMEChecks:
             if val < 1:
                 raise ValueError(f"{name} must be a positive integer, got {val}")
         check_positive_number(self.tol, "tol")
-        if self.error_model not in ("white", "random_walk"):
-            raise ValueError(
-                "error_model must be 'white' or 'random_walk', got "
-                f"{self.error_model!r}"
-            )
         if self.target not in ("error", "derivative"):
             raise ValueError(
                 f"target must be 'error' or 'derivative', got {self.target!r}"
@@ -60,6 +56,10 @@ class MMEChecks:
                 f"{self.input_hold!r}"
             )
         return int(n)
+
+    def _check_error_model(self):
+        """The prior on ``d``, resolved through the registry and checked."""
+        return resolve_error_model(self.error_model)
 
     @staticmethod
     def _check_measurements(y):

@@ -38,6 +38,13 @@ restricted marginal likelihood of ``W`` is
 because ``|det K| = det(M) / prod_k det(h_k W)`` with ``M`` the Hessian of
 ``J / 2`` in the free variables ``(x_0, d)``.
 
+A Gaussian prior ``N(0, P)`` on some states of each record's initial state
+(``initial_prior``: an error model whose ``d`` has a stationary
+distribution) adds ``x_0^T P^-1 x_0`` to ``J`` (its information to the
+first block of the KKT matrix) and ``log det(2 pi P)`` per record to
+``-2 log p(y | W)``: it is a measurement of those states, of value 0 and
+covariance ``P``.
+
 Units: the KKT pivots mix ``R^-1`` (state rows) with ``h W^-1`` (multiplier
 rows), so in the data's own units a noise variance far from one (data in
 nanometres, say) would spread them over more decades than double precision
@@ -230,6 +237,12 @@ class MMESmoother(GaussNewton):
 
     Attributes
     ----------
+    initial_prior : callable or None
+        None (the default): a flat prior on each record's initial state.
+        Else ``initial_prior(W) -> (states, P)`` or None: a Gaussian prior
+        ``N(0, P)`` (``P`` of shape ``(len(states), len(states))``, user
+        units) on those states of each record's initial state, for the
+        weight ``W`` of the solve (user units).
     unit : ndarray (n,)
         Each state's internal unit (:func:`.units.state_units`, from the
         noise and the starting trajectory: ``x_init`` or the data).
@@ -326,6 +339,11 @@ class MMESmoother(GaussNewton):
         self._E[self.es, np.arange(self.q)] = 1.0
         # Names of the states in diagnostics (default x0, x1, ...).
         self.state_labels = None
+        self.initial_prior = None
+        #: the prior of the current solve in internal units:
+        #: ``(states, information, -2 log of its normalisation)`` or None
+        self._prior = None
+        self._record_starts = np.concatenate([[0], self.starts]).astype(int)
         self._scale = None
         self._HRQ = None
         self._kkt = BandedKKT(self.N, self.n, self.breaks)
@@ -591,6 +609,36 @@ class MMESmoother(GaussNewton):
     def model_error_cost(self, d, W):
         return float(np.einsum("k,ki,ij,kj->", self.h, d, W, d))
 
+    def prior_cost(self, x, dx=None):
+        """``sum x_0^T P^-1 x_0`` over the records' initial states (0 without
+        a prior); with ``dx``, its slope along ``dx`` instead."""
+        if self._prior is None:
+            return 0.0
+        idx, info, _ = self._prior
+        z0 = x[self._record_starts][:, idx]
+        if dx is not None:
+            return 2.0 * float(
+                np.einsum("ri,ij,rj->", z0, info, dx[self._record_starts][:, idx])
+            )
+        return float(np.einsum("ri,ij,rj->", z0, info, z0))
+
+    def _set_prior(self, W):
+        """:attr:`initial_prior` at the weight ``W`` (user units), internally."""
+        prior = None if self.initial_prior is None else self.initial_prior(W)
+        if prior is None:
+            self._prior = None
+            return
+        idx, P = prior
+        idx = np.asarray(idx, dtype=int)
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        su = self.unit[idx]
+        info = np.linalg.inv(P / np.outer(su, su))
+        # per record log det(2 pi P) in user units: the conversion of the
+        # likelihood in solve() treats every initial state as flat (det S
+        # per state), which a normalised prior is not
+        norm = self._record_starts.size * np.linalg.slogdet(2.0 * np.pi * P)[1]
+        self._prior = (idx, 0.5 * (info + info.T), float(norm))
+
     # ------------------------------------------------------------------- KKT
     def kkt_system(self, lin: Linearization, W=None, Winv=None):
         """Factorise the KKT matrix at ``lin``; returns ``(fac, HR, GW, E, D)``.
@@ -609,6 +657,11 @@ class MMESmoother(GaussNewton):
         else:
             HR = np.einsum("kai,kab->kib", H, self.Rinv)  # H^T Rinv
             Q = HR @ H
+        if self._prior is not None:
+            idx, info, _ = self._prior
+            Q = Q.copy()  # never the cached one
+            for k0 in self._record_starts:
+                Q[k0][np.ix_(idx, idx)] += info
         GW = S = None
         if self.q:
             GW = lin.G @ Winv  # (N-1, n, q)
@@ -642,6 +695,10 @@ class MMESmoother(GaussNewton):
             raise np.linalg.LinAlgError("singular KKT system")
         rhs = np.zeros((N, 2 * n))
         rhs[:, :n] = np.einsum("kib,kb->ki", HR, lin.r)
+        if self._prior is not None:
+            idx, info, _ = self._prior
+            k0 = self._record_starts
+            rhs[np.ix_(k0, idx)] -= lin.x[np.ix_(k0, idx)] @ info
         rhs[:-1, n:] = -lin.defects
         if self.q:
             rhs[:-1, n:] += np.einsum("kiq,kq->ki", lin.G, lin.d)
@@ -725,6 +782,7 @@ class MMESmoother(GaussNewton):
             x, d = (start.x, start.d) if start is not None else self.initial_guess()
             theta = start.theta if start is not None and self.p else self.theta_init
             lin = self.linearize(x / s, d / se, self.project(theta))
+        self._set_prior(W)
         res = self._solve(W * np.outer(se, se), lin)
         # Back to the user's units. J is unit-free; the multipliers (of J / 2
         # against defects in x) scale as 1 / s; the density of the N_obs

@@ -25,7 +25,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.model import ModelFunction, rowwise_jacobian
-from .random_walk import RandomWalkModel
 
 __all__ = ["Dynamics", "channel_units", "internal_unit", "state_units"]
 
@@ -220,13 +219,14 @@ class Dynamics:
         self.parametric = hasattr(model, "param_jacobian")
         own = type(model).jacobian is not ModelFunction.jacobian
         self._own_jacobian = isinstance(model, ModelFunction) and own
-        # ``error_model="random_walk"``: the base model's block by finite
-        # differences in internal units (its own Jacobian steps in the
-        # user's units), the model-error block exact
-        self._walk = None
-        if isinstance(model, RandomWalkModel):
+        # A model with its model error as extra states (``augments``, see
+        # :class:`~.error_models.AugmentedModel`: ``base``, ``es``, ``rate``):
+        # the base model's block by finite differences in internal units
+        # (its own Jacobian steps in the user's units), the d blocks exact
+        self._augmented = None
+        if getattr(model, "augments", False):
             nb = model.n_base
-            self._walk = (Dynamics(model.base, self.unit[:nb]), nb, model.es)
+            self._augmented = (Dynamics(model.base, self.unit[:nb]), nb, model.es)
 
     def _user(self, z):
         """``S z``, the same array object for the same ``z`` (so the model can
@@ -245,12 +245,14 @@ class Dynamics:
         return self.model(z * self.unit, t, u) / self.unit
 
     def jacobian(self, z, t, u, theta):
-        if self._walk is not None:
-            base, nb, es = self._walk
+        if self._augmented is not None:
+            base, nb, es = self._augmented
             J = np.zeros((z.shape[0], self.n, self.n))
             J[:, :nb, :nb] = base.jacobian(z[:, :nb], t, u, theta)
             cols = nb + np.arange(es.size)
             J[:, es, cols] = self.unit[cols] / self.unit[es]  # x_es' += d
+            sd = self.unit[cols]  # d' = F d + w: S_d^-1 F S_d
+            J[:, nb:, nb:] = self.model.rate * (sd[None, :] / sd[:, None])
             return J
         if self._own_jacobian:
             return self._to_internal(self.model.jacobian(z * self.unit, t, u))

@@ -22,6 +22,7 @@ from ..core.libraries import fresh_library
 from ..core.noise import describe_noise, estimate_noise_variance
 from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
+from ..differentiation.error_models import resolve_error_model
 from .hidden import HiddenStates, add_hidden_states
 from .parameters import parameter_spec
 from .placement import default_error_states
@@ -842,10 +843,7 @@ def _check_estimator(est, y) -> int:
             )
     if est.error_states is not None:
         val.check_indices(est.error_states, n_states, "error_states")
-    if est.error_model not in ("white", "random_walk"):
-        raise ValueError(
-            f"error_model must be 'white' or 'random_walk', got {est.error_model!r}"
-        )
+    resolve_error_model(est.error_model)
     return int(n_states)
 
 

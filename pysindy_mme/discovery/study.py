@@ -123,8 +123,10 @@ def discover(
         records``).
     W : "auto", "ml" or positive number, default "auto"
         MME weight (see :class:`MME`).
-    error_model : {"white", "random_walk"}, default "white"
-        MME's prior on the model error (see :class:`MME`).
+    error_model : str or ErrorModel, default "white"
+        MME's prior on the model error: ``"white"`` (the paper),
+        ``"random_walk"`` or any registered name, or an object (see
+        :class:`MME` and :mod:`~pysindy_mme.differentiation.error_models`).
     alpha : float, default 0.001
         Significance level of the tests (consistency, terms, F-test of the
         extended against the assumed model). Each term is tested at

@@ -202,6 +202,11 @@ SLIPS = [
         {"input_hold": "spline"},
         ("--input-hold must be one of linear, zoh",),
     ),
+    Slip(
+        "error model unknown",
+        {"error_model": "smooth"},
+        ("--error-model must be one of white, random_walk", "got 'smooth'"),
+    ),
     Slip("states repeated", {"states": "position,position"}, ("--states repeats",)),
     Slip(
         "model file does not exist",

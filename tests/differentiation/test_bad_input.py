@@ -315,7 +315,8 @@ BAD_INPUTS = [
         "MME: unknown error model",
         lambda tmp: _mme_fit(error_model="smooth"),
         ValueError,
-        r"error_model must be 'white' or 'random_walk'",
+        r"error_model must be an ErrorModel object or a registered name "
+        r"\('white'.*'random_walk'.*\); got 'smooth'",
     ),
 ]
 

@@ -126,7 +126,8 @@ BAD_INPUTS = [
         "discover: unknown error model",
         lambda tmp: _discover(error_model=None),
         ValueError,
-        r"error_model must be 'white' or 'random_walk', got None",
+        r"error_model must be an ErrorModel object or a registered name "
+        r"\('white'.*'random_walk'.*\); got None",
     ),
     Bad(
         "discover: model returns the wrong shape",
