@@ -44,7 +44,7 @@ __all__ = ["MemoryEvidence", "memory_evidence", "MEMORY_GAIN", "MEMORY_RATIO"]
 #: the history must leave at most this share of what the present leaves
 #: unexplained (measured on the benchmark's records: a missing hysteretic
 #: state 0.33-0.48; static effects of seven textbook systems and three
-#: machines 0.69 and above, benchmarks/bench_hidden_state.py) ...
+#: machines 0.70 and above, benchmarks/bench_hidden_state.py) ...
 MEMORY_RATIO = 0.5
 #: ... and raise the cross-validated R^2 by at least this much (a guard
 #: against ratios of two tiny numbers when the static fit is near perfect)
