@@ -136,6 +136,14 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
             sim = simulate_guided(rhs, x0, t, inputs, engine.n_substeps, guess)
         return sim.x[0]
 
+    # The perturbed runs start from the unperturbed free run, not the fit's
+    # trajectory: a model that departs from the data (a library without the
+    # effect) runs far from its fit, Newton from the fit would fail and fall
+    # back to a sequential loop for every column (14 s on 2,000 samples);
+    # from the free run it converges in a step or two.
+    base = states_at(q0)
+    if np.all(np.isfinite(base)):
+        guess = base
     whiten = _whitener(engine.R)
     measure = _measure(engine.measurement)
     columns, state_columns = [], []
