@@ -41,6 +41,13 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # One BLAS thread per worker: with a worker per core, threaded BLAS in
+    # each would oversubscribe the cores (small solves then run 100x slower).
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
 _CASES = pytest.StashKey[Counter]()
 
 
