@@ -223,6 +223,67 @@ class Discovery:
         """The extended model's free run from its fitted initial state."""
         return self.gain.in_sample_runs["extended"].x
 
+    # ---------------------------------------------- statsmodels' names
+    @property
+    def _final_fit(self):
+        return self.extended_fit or self.assumed.fit
+
+    @property
+    def param_names(self) -> list:
+        """Names of :attr:`params`: the grey-box parameters, the kept terms
+        (``"x1^3 in x2'"``), the measurement offsets (``offsets=True``)."""
+        fit = self._final_fit
+        names = list(self.study.parameter_names)
+        names += [f"{te.feature} in {te.state}'" for te in self.term_estimates]
+        if fit.n_offsets:
+            names += [f"offset of {name}" for name in self.study.channel_names]
+        return names
+
+    @property
+    def params(self) -> np.ndarray:
+        """Every fitted constant of the final model (statsmodels' ``params``):
+        parameters, term coefficients, offsets, in :attr:`param_names` order."""
+        return np.array(self._final_fit.theta, dtype=float)
+
+    @property
+    def bse(self) -> np.ndarray:
+        """Standard errors of :attr:`params` (NaN where undefined: a parameter
+        held on its bound, an unidentified direction)."""
+        se = np.array(self._final_fit.std_errors, dtype=float)
+        return np.where(se > 0, se, np.nan)
+
+    @property
+    def df_resid(self) -> int:
+        """Residual degrees of freedom of the final fit."""
+        return int(self._final_fit.dof)
+
+    @property
+    def nobs(self) -> int:
+        """Measurements fitted (censored and missing readings left out)."""
+        return int(self._final_fit.n_residuals)
+
+    @property
+    def tvalues(self) -> np.ndarray:
+        """``params / bse``."""
+        with np.errstate(all="ignore"):
+            return self.params / self.bse
+
+    @property
+    def pvalues(self) -> np.ndarray:
+        """Two-sided p-values of :attr:`tvalues` (Student t, :attr:`df_resid`)."""
+        from scipy import stats
+
+        return 2.0 * stats.t.sf(np.abs(self.tvalues), self.df_resid)
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Confidence intervals of :attr:`params` at level ``1 - alpha``,
+        shape ``(k, 2)`` (the report's are ``alpha = 0.05``)."""
+        if not 0.0 < float(alpha) < 1.0:
+            raise ValueError(f"alpha must lie strictly between 0 and 1, got {alpha!r}")
+        ci = np.array(self._final_fit.confidence_intervals(1.0 - float(alpha)))
+        ci[~np.isfinite(self.bse)] = np.nan
+        return ci
+
     @property
     def parameters(self) -> dict:
         """``{name: ParameterEstimate}`` of the assumed model's parameters."""
