@@ -122,6 +122,11 @@ class _Search:
     def mme_fit(self) -> OutputErrorFit:
         """A placeholder fit at MME's trajectory and parameters (a start)."""
         x, _, physical = self.mme
+        return self.placeholder(x, physical)
+
+    def placeholder(self, x, physical) -> OutputErrorFit:
+        """A fit of no terms at trajectory ``x`` and ``physical`` (with the
+        assumed fit's offsets): where a trial starts, not a result."""
         return OutputErrorFit(
             slots=(),
             theta=np.concatenate([physical, self.assumed.offsets]),
@@ -299,20 +304,7 @@ class _Search:
         start_fit = (
             self.mme_fit()
             if self.mme is not None
-            else OutputErrorFit(
-                slots=(),
-                theta=self.assumed.theta,
-                x=x_start,
-                cost=np.nan,
-                n_residuals=0,
-                n_free=0,
-                converged=False,
-                message="",
-                rank_deficient=False,
-                n_iter=0,
-                n_physical=self.assumed.n_physical,
-                n_offsets=self.assumed.n_offsets,
-            )
+            else self.placeholder(x_start, self.assumed.physical)
         )
         if 0 < len(proposals) <= JOINT_START_MAX:
             joint = self.refit(proposals, values, start_fit, polish=True)

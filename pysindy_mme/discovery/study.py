@@ -426,21 +426,34 @@ def _parameter_doubts(study, fit) -> list:
 
 def _substeps(study, assumed, proposals, x_hat) -> int:
     """RK4 steps per interval for the assumed model plus the proposals."""
-    coef, u = proposals.coefficients, study.u
-    model = study.model_at(assumed.fit.physical)
-    cols = [int(j) for j in np.flatnonzero(np.any(coef != 0, axis=0))]
+    coef = proposals.coefficients
+    rows, cols = np.nonzero(coef)
+    slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
+    return _rk4_steps_of(
+        study, assumed.fit.physical, slots, coef[rows, cols], proposals, x_hat
+    )
+
+
+def _rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
+    """RK4 steps per interval for the assumed model at ``physical`` plus the
+    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`)."""
+    u = study.u
+    model = study.model_at(physical)
+    columns = [c for _, c in slots]
 
     def rhs_rows(x, stride):
         ts = study.t[::stride][: x.shape[0]]
         us = None if u is None else u[::stride][: x.shape[0]]
-        out = model(x, ts, us)
-        if cols:
+        out = np.array(model(x, ts, us), dtype=float)
+        if slots:
             z = x if us is None else np.hstack([x, us])
             with np.errstate(all="ignore"):
-                out = out + proposals.features(z, cols) @ coef[:, cols].T
+                values = proposals.evaluate(z, columns)
+            for k, (i, _) in enumerate(slots):
+                out[:, i] += coefs[k] * values[:, k]
         return out
 
-    return rk4_substeps(study, rhs_rows, x_hat, study.t)
+    return rk4_substeps(study, rhs_rows, x, study.t)
 
 
 def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, substeps):
@@ -456,22 +469,9 @@ def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, sub
     fit = confirmation.fit
     if fit is None or not fit.ok:
         return engine, assumed, substeps
-    u = study.u
-    model = study.model_at(fit.physical)
-    coefs = fit.coefficients
-
-    def rhs_rows(x, stride):
-        ts = study.t[::stride][: x.shape[0]]
-        us = None if u is None else u[::stride][: x.shape[0]]
-        out = np.array(model(x, ts, us), dtype=float)
-        z = x if us is None else np.hstack([x, us])
-        with np.errstate(all="ignore"):
-            cols = proposals.evaluate(z, [c for _, c in fit.slots])
-        for k, (i, _) in enumerate(fit.slots):
-            out[:, i] += coefs[k] * cols[:, k]
-        return out
-
-    needed = rk4_substeps(study, rhs_rows, fit.x, study.t)
+    needed = _rk4_steps_of(
+        study, fit.physical, fit.slots, fit.coefficients, proposals, fit.x
+    )
     if needed <= substeps:
         return engine, assumed, substeps
     finer = output_error_engine(study, proposals.evaluate, needed)

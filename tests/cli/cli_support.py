@@ -106,3 +106,32 @@ def base_args(csv_path, model_path, out_dir, /, **changes):
     for flag, value in options.items():
         argv += [flag] if value is True else [flag, value]
     return argv
+
+
+class _DiscoverReached(BaseException):
+    """Stops the command at its call of ``discover`` (not an Exception, so
+    that no ``except Exception`` in the command swallows it)."""
+
+
+def discover_arguments(monkeypatch, argv):
+    """``(args, kwargs)`` the command line ``argv`` hands to ``discover``.
+
+    A stand-in records them and stops the command there, so the wiring of
+    an option is checked in milliseconds, without a study.
+    """
+    import pysindy_mme.discovery as discovery
+
+    seen = {}
+
+    def stand_in(*args, **kwargs):
+        seen["args"], seen["kwargs"] = args, kwargs
+        raise _DiscoverReached
+
+    monkeypatch.setattr(discovery, "discover", stand_in)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            main([str(a) for a in argv])
+        except _DiscoverReached:
+            return seen["args"], seen["kwargs"]
+    raise AssertionError(f"discover was not called: {err.getvalue()}")

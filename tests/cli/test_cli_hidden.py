@@ -10,45 +10,20 @@ found). Bad values end before any computation with a message naming the
 option.
 """
 
-import contextlib
-import io
 import json
 import re
 
 import numpy as np
 import pytest
-from cli_support import base_args, run, write_user_files
+from cli_support import base_args, discover_arguments, run, write_user_files
 
-import pysindy_mme.discovery as discovery
-from pysindy_mme.cli import main
 from pysindy_mme.machines import hysteretic_oscillator
-
-
-class Stop(BaseException):
-    pass
 
 
 @pytest.fixture
 def call(monkeypatch):
     """``call(argv) -> kwargs`` that discover would have received."""
-
-    def run_until_discover(argv):
-        seen = {}
-
-        def stand_in(*args, **kwargs):
-            seen["kwargs"] = kwargs
-            raise Stop
-
-        monkeypatch.setattr(discovery, "discover", stand_in)
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            try:
-                main([str(a) for a in argv])
-            except Stop:
-                return seen["kwargs"]
-        raise AssertionError(f"discover was not called: {err.getvalue()}")
-
-    return run_until_discover
+    return lambda argv: discover_arguments(monkeypatch, argv)[1]
 
 
 def test_hidden_state_and_substeps_reach_discover(tmp_path, call):

@@ -5,45 +5,21 @@ the arguments), so they check the wiring in milliseconds; the grey-box test
 runs the whole study.
 """
 
-import contextlib
 import inspect
-import io
 import json
 
 import numpy as np
 import pytest
-from cli_support import base_args, run, write_user_files
+from cli_support import base_args, discover_arguments, run, write_user_files
 
 import pysindy_mme
-import pysindy_mme.discovery as discovery
-from pysindy_mme.cli import build_parser, main
-
-
-class Stop(BaseException):
-    pass
+from pysindy_mme.cli import build_parser
 
 
 @pytest.fixture
 def call(monkeypatch):
     """``call(argv) -> (args, kwargs)`` that discover would have received."""
-
-    def run_until_discover(argv):
-        seen = {}
-
-        def stand_in(*args, **kwargs):
-            seen["args"], seen["kwargs"] = args, kwargs
-            raise Stop
-
-        monkeypatch.setattr(discovery, "discover", stand_in)
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            try:
-                main([str(a) for a in argv])
-            except Stop:
-                return seen["args"], seen["kwargs"]
-        raise AssertionError(f"discover was not called: {err.getvalue()}")
-
-    return run_until_discover
+    return lambda argv: discover_arguments(monkeypatch, argv)
 
 
 def test_rate_instead_of_a_time_column(tmp_path, call):
