@@ -20,7 +20,8 @@ from collections import Counter
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import PowerLibrary, discover
+from pysindy_mme import PowerLibrary, StudyOptions, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import (
     duffing,
     forced_oscillator,
@@ -57,9 +58,9 @@ def study(system, library_factory, seeds, assumed=None, **options):
                 noise_variance=noise,
                 error_states=error_states,
                 feature_library=library_factory(),
-                feature_names=system.feature_names,
                 u=data.u,
-                **options,
+                **grouped_keywords(options),
+                options=StudyOptions(feature_names=system.feature_names),
             )
         times.append(time.perf_counter() - start)
         conclusions[res.conclusion] += 1

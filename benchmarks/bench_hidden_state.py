@@ -60,8 +60,9 @@ import warnings
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme import MME, PhysicsLibrary, StudyOptions, discover
 from pysindy_mme.discovery.memory import MEMORY_GAIN, MEMORY_RATIO
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library import Coulomb, Stribeck, ViscousSplit
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import (
@@ -116,7 +117,7 @@ def _quiet_discover(y, t, **options):
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(y, t, **options)
+        res = discover(y, t, **grouped_keywords(options))
     return res, time.perf_counter() - start
 
 
@@ -343,15 +344,14 @@ def _axis_case(seed):
         train.t,
         u=train.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=2,
         measured=[0],
         noise_variance=rec.quantisation_step**2 / 12.0,
         feature_library=lib,
-        feature_names=names,
         error_states=[1],
-        input_hold="zoh",
         validation=(test.y, test.t, test.u),
+        options=StudyOptions(parameters=machine.parameters, feature_names=names),
+        mme=MME(input_hold="zoh"),
     )
 
 
@@ -364,14 +364,15 @@ def _damper_case(seed):
         rec.t,
         u=rec.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=2,
         measured=[0],
         noise_variance=float(rec.noise_sd[0]) ** 2,
         error_states=[1],
         feature_library=lib,
-        feature_names=["q", "v", "u"],
-        input_hold="zoh",
+        options=StudyOptions(
+            parameters=machine.parameters, feature_names=["q", "v", "u"]
+        ),
+        mme=MME(input_hold="zoh"),
     )
 
 
@@ -387,7 +388,7 @@ def _pendulum_case(seed):
         noise_variance=float(rec.noise_sd[0]) ** 2,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["theta", "omega"],
+        options=StudyOptions(feature_names=["theta", "omega"]),
     )
 
 

@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import MME, discover
+from pysindy_mme import MME, StudyOptions, discover
 from pysindy_mme.systems import van_der_pol
 
 TRUE = {"x1": -1.0, "x2": 1.0, "x1^2 x2": -1.0}
@@ -50,7 +50,7 @@ def study(y, t, system):
         noise_variance=0.01,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["x1", "x2"],
+        options=StudyOptions(feature_names=["x1", "x2"]),
     )
 
 

@@ -74,8 +74,16 @@ import warnings
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import DivergenceError, ExtendedModel, PhysicsLibrary, discover
+from pysindy_mme import (
+    MME,
+    DivergenceError,
+    ExtendedModel,
+    PhysicsLibrary,
+    StudyOptions,
+    discover,
+)
 from pysindy_mme.core.model import simulate_model
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library import (
     Coulomb,
     Overflow,
@@ -210,7 +218,7 @@ def _quiet_discover(y, t, **options):
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(y, t, **options)
+        res = discover(y, t, **grouped_keywords(options))
     return res, time.perf_counter() - start
 
 
@@ -352,7 +360,7 @@ def _oscillator_case(seed, physics):
         noise_variance=1e-4,
         error_states=[1],
         feature_library=lib,
-        feature_names=["x1", "x2"],
+        options=StudyOptions(feature_names=["x1", "x2"]),
     )
     return res, sec, ("x2", "sign(x2)", -0.05, 0.10, ())
 
@@ -370,12 +378,13 @@ def _axis_case(seed, physics):
         rec.t,
         u=rec.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=2,
         measured=[0],
         noise_variance=(1e-5) ** 2,
         feature_library=lib,
-        feature_names=["q", "v", "u"],
+        options=StudyOptions(
+            parameters=machine.parameters, feature_names=["q", "v", "u"]
+        ),
     )
     return res, sec, ("v", "sign(v)", -20 / 95, 0.05, ("1",))
 
@@ -459,15 +468,16 @@ def _tanks_row(machine, seed):
         rec.t,
         u=rec.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=2,
         measured=[1],
         noise_variance=float(rec.noise_sd[0]) ** 2 + step**2 / 12.0,
         error_states=[0, 1],
         feature_library=lib,
-        feature_names=["h1", "h2", "u"],
-        input_hold="zoh",
         validation=(test.y, test.t, test.u),
+        options=StudyOptions(
+            parameters=machine.parameters, feature_names=["h1", "h2", "u"]
+        ),
+        mme=MME(input_hold="zoh"),
     )
     # the true model's free run on the samples of the study's validation RMSE
     y_v = res.study.validation[0]
@@ -600,15 +610,14 @@ def axis(args):
             train.t,
             u=train.u,
             assumed_model=machine.assumed_model,
-            parameters=machine.parameters,
             n_states=2,
             measured=[0],
             noise_variance=rec.quantisation_step**2 / 12.0,
             feature_library=lib,
-            feature_names=names,
             error_states=[1],
-            input_hold="zoh",
             validation=(test.y, test.t, test.u),
+            options=StudyOptions(parameters=machine.parameters, feature_names=names),
+            mme=MME(input_hold="zoh"),
         )
         times.append(sec)
         terms = res.terms.get("v", {})

@@ -15,7 +15,7 @@ import argparse
 
 import pysindy as ps
 
-from pysindy_mme import discover
+from pysindy_mme import StudyOptions, discover
 from pysindy_mme.systems import duffing
 
 
@@ -36,9 +36,10 @@ def main(argv=None):
         noise_variance=system.noise_variance,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["x1", "x2"],
         validation=(validation.y, validation.t),
-        assumed_equations=["x2", "-x1 - 0.1 x2"],
+        options=StudyOptions(
+            feature_names=["x1", "x2"], assumed_equations=["x2", "-x1 - 0.1 x2"]
+        ),
     )
     print(result)
     print("true hidden effect in x2':", system.hidden_terms["x2"])

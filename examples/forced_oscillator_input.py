@@ -16,7 +16,7 @@ import argparse
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import discover
+from pysindy_mme import StudyOptions, discover
 from pysindy_mme.systems import forced_oscillator
 
 
@@ -37,8 +37,10 @@ def main(argv=None):
         error_states=[1],
         u=data.u,
         feature_library=ps.PolynomialLibrary(degree=2),
-        feature_names=["x1", "x2", "u"],
-        assumed_equations=["x2", "-x1 - 0.2 x2 + u"],
+        options=StudyOptions(
+            feature_names=["x1", "x2", "u"],
+            assumed_equations=["x2", "-x1 - 0.2 x2 + u"],
+        ),
     )
     print(result)
     print("true hidden effect in x2':", system.hidden_terms["x2"])

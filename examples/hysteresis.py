@@ -32,7 +32,7 @@ import warnings
 
 import pysindy as ps
 
-from pysindy_mme import discover
+from pysindy_mme import MME, StudyOptions, discover
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import hysteretic_oscillator
 
@@ -63,15 +63,17 @@ def main(argv=None):
     machine = hysteretic_oscillator()
     record = machine.record(seed=0, n_samples=n_samples)
     test = machine.record(seed=1000, n_samples=n_samples)  # never fitted
+    options = StudyOptions(
+        parameters=dict(machine.parameters),  # m, c, k guessed 20 % off
+        feature_names=["y", "v", "u"],
+    )
     common = dict(
         u=record.u,
         assumed_model=machine.assumed_model,  # f(x, t, u, p) on [y, v]
-        parameters=dict(machine.parameters),  # m, c, k guessed 20 % off
         n_states=2,
         measured=[0],
         noise_variance=float(record.noise_sd[0]) ** 2,
-        feature_names=["y", "v", "u"],
-        input_hold="zoh",  # the force is held between samples
+        mme=MME(input_hold="zoh"),  # the force is held between samples
         validation=(test.y, test.t, test.u),  # the gain out of sample
     )
     p = machine.true_parameters
@@ -91,6 +93,7 @@ def main(argv=None):
             record.t,
             error_states=[1],  # y' = v is a definition
             feature_library=library([0, 1]),
+            options=options,
             **common,
         )
     show_conclusion(first)
@@ -102,8 +105,8 @@ def main(argv=None):
         result = discover(
             record.y,
             record.t,
-            hidden_states={"z": "v"},
             feature_library=library([1, 2]),  # columns of (y, v, z, u)
+            options=options.replace(hidden_states={"z": "v"}),
             **common,
         )
     result.extended_model.print()

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import discover
+from pysindy_mme import MME, StudyOptions, discover
 from pysindy_mme.core.integrate import HOLDS
 from pysindy_mme.datasets import fetch_silverbox
 from pysindy_mme.discovery.choices import choose_input_hold
@@ -72,7 +72,6 @@ def _options(verbose=False):
     guess = {"k": (2 * np.pi * 70) ** 2, "c": 10.0, "b": (2 * np.pi * 70) ** 2}
     return dict(
         assumed_model=linear_oscillator,
-        parameters=guess,
         n_states=2,
         measured=[0],
         # A model that fits this record to within ~0.3 mV would be
@@ -80,8 +79,9 @@ def _options(verbose=False):
         noise_variance=(0.3e-3) ** 2,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=["y", "v", "u"],
-        verbose=verbose,
+        options=StudyOptions(
+            parameters=guess, feature_names=["y", "v", "u"], verbose=verbose
+        ),
     )
 
 
@@ -109,7 +109,7 @@ def study(sb, hold, n_train=None, verbose=False):
     y, t, u = _training(sb, n_train)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return discover(y, t, u=u, input_hold=hold, **_options(verbose))
+        return discover(y, t, u=u, mme=MME(input_hold=hold), **_options(verbose))
 
 
 def score(res, sb):

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pysindy as ps
 
-from pysindy_mme import MME, FloatingFStepwise, PowerLibrary, discover
+from pysindy_mme import MME, FloatingFStepwise, PowerLibrary, StudyOptions, discover
 from pysindy_mme.differentiation.sindy_route import extended_model_from_sindy
 from pysindy_mme.systems import van_der_pol
 
@@ -87,8 +87,7 @@ def main(argv=None):
         noise_variance=0.01,
         error_states=[1],
         feature_library=library,
-        feature_names=["x1", "x2"],
-        assumed_equations=["x2", "0"],
+        options=StudyOptions(feature_names=["x1", "x2"], assumed_equations=["x2", "0"]),
     )
     print(result)
     true_terms = system.hidden_terms["x2"]

@@ -7,11 +7,13 @@ a library of functions of the state (:class:`FloatingFStepwise`,
 """
 
 from . import datasets
+from ._version import __version__  # noqa: F401 (pysindy_mme.__version__)
 from .core.noise import NoiseDiagnostics, estimate_noise_variance
 from .differentiation import MME
 from .differentiation.sindy_route import extended_model_from_sindy
 from .discovery import Discovery, ExtendedModel, Parameter, discover
 from .discovery.inputs import Record
+from .discovery.options import StudyOptions
 from .exceptions import (
     DiscoveryWarning,
     DivergenceError,
@@ -20,7 +22,7 @@ from .exceptions import (
     StepwiseCycleWarning,
 )
 from .feature_library import PhysicsLibrary, PowerLibrary
-from .stepwise import FloatingFStepwise
+from .optimizers import FloatingFStepwise
 
 __all__ = [
     "MME",
@@ -28,6 +30,7 @@ __all__ = [
     "ExtendedModel",
     "Parameter",
     "Record",
+    "StudyOptions",
     "FloatingFStepwise",
     "PowerLibrary",
     "PhysicsLibrary",
@@ -42,5 +45,3 @@ __all__ = [
     "NotSavedError",
     "StepwiseCycleWarning",
 ]
-
-__version__ = "0.1.0"

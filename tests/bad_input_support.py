@@ -67,8 +67,8 @@ def install_tripwires(monkeypatch) -> None:
     (``OutputErrorModel.fit``).
     """
     import pysindy_mme.optimizers.stepwise as stepwise_module
-    from pysindy_mme.differentiation import MMESmoother
-    from pysindy_mme.discovery.output_error import OutputErrorModel
+    from pysindy_mme.solver import MMESmoother
+    from pysindy_mme.solver.output_error import OutputErrorModel
 
     def tripwire(*args, **kwargs):
         raise LongComputationStarted

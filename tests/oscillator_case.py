@@ -15,6 +15,7 @@ import pysindy as ps
 
 from pysindy_mme import discover
 from pysindy_mme.core.model import simulate_model
+from pysindy_mme.discovery.options import grouped_keywords
 
 __all__ = ["linear_oscillator", "oscillator", "record", "study"]
 
@@ -59,4 +60,4 @@ def study(y, t, model=linear_oscillator, noise=1e-3, **kwargs):
     options.update(kwargs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return discover(y, t, **options)
+        return discover(y, t, **grouped_keywords(options))

@@ -13,6 +13,7 @@ import numpy as np
 from bad_input_support import readonly
 
 from pysindy_mme import MME, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import van_der_pol
 
 __all__ = [
@@ -67,4 +68,4 @@ def paper_discover(y=Y, t=T, **overrides):
     """discover on ``y`` at ``t`` with the paper's arguments, feature names x1, x2."""
     args = _paper_args(feature_names=["x1", "x2"])
     args.update(overrides)
-    return discover(y, t, **args)
+    return discover(y, t, **grouped_keywords(args))

@@ -14,6 +14,7 @@ import numpy as np
 import pysindy as ps
 
 from pysindy_mme import discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import duffing
 
 __all__ = [
@@ -65,4 +66,4 @@ def study(grey: bool = False, model=None):
         options.update(assumed_model=duffing_grey, parameters={"k": (1.1, 0.0, None)})
     else:
         options.update(assumed_model=model or duffing_assumed)
-    return discover(data.y[:N_SAMPLES], data.t[:N_SAMPLES], **options)
+    return discover(data.y[:N_SAMPLES], data.t[:N_SAMPLES], **grouped_keywords(options))

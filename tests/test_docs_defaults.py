@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from pysindy_mme import FloatingFStepwise, discover
+from pysindy_mme import FloatingFStepwise, StudyOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +22,7 @@ CLAIMS = [
         "docs/errors.md",
         r"`alpha must lie strictly between 0 and 1` \| significance level \| "
         r"e\.g\. ([0-9.e-]+) \(default\)",
-        discover,
+        StudyOptions,
         "alpha",
     ),
     (
@@ -35,7 +35,7 @@ CLAIMS = [
         "docs/errors.md",
         r"`refit must be True or False` \(TypeError\) \| not a bool \| `(True|False)` "
         r"\(default\)",
-        discover,
+        StudyOptions,
         "refit",
     ),
 ]
@@ -57,7 +57,7 @@ def test_quoted_default_is_the_code_default(path, pattern, func, name):
 
 
 def test_readme_quotes_discover_alpha_as_the_code_does():
-    default = inspect.signature(discover).parameters["alpha"].default
+    default = inspect.signature(StudyOptions).parameters["alpha"].default
     for path in ("README.md", "docs/errors.md"):
         for match in re.finditer(
             r"alpha\s*=\s*([0-9.]+)[^0-9]", (ROOT / path).read_text()

@@ -6,7 +6,6 @@ a :class:`~.loading.UsageError` naming the option and what to do.
 
 from __future__ import annotations
 
-import inspect
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +14,8 @@ import numpy as np
 
 from ..core.integrate import HOLDS
 from ..differentiation.error_models import error_model_names
+from ..discovery.options import grouped_keywords
+from ..protocols import KStepAhead
 from .loading import (
     UsageError,
     load_csv,
@@ -25,7 +26,7 @@ from .loading import (
     positional_count,
 )
 
-__all__ = ["Request", "build_request", "discover_accepts", "parse_hidden_states"]
+__all__ = ["Request", "build_request", "parse_hidden_states"]
 
 
 @dataclass
@@ -46,13 +47,6 @@ class Request:
     #: several data files: ``(y, t, u)`` of each (``y``, ``t``, ``u`` above
     #: are the first); None for one
     records: list | None = None
-
-
-def discover_accepts(name: str) -> bool:
-    """Whether this version of :func:`discover` takes the keyword ``name``."""
-    from ..discovery.study import discover
-
-    return name in inspect.signature(discover).parameters
 
 
 def _number(text, option, example, minimum=None, integer=False):
@@ -77,6 +71,26 @@ def _column(header, data, name, option):
             "column name from the CSV's header"
         )
     return data[:, header.index(name)]
+
+
+def _k_step(args, kwargs) -> None:
+    """--k-step K: the validation records (or a held-out stretch) scored by
+    K-step-ahead predictions (:class:`~pysindy_mme.protocols.KStepAhead`)."""
+    if getattr(args, "k_step", None) is None:
+        return
+    k = _number(args.k_step, "--k-step", "--k-step 10", 1, integer=True)
+    window = kwargs.pop("validation_window", None)
+    if window is None and args.validation_window is not None:
+        window = _number(
+            args.validation_window,
+            "--validation-window",
+            "--validation-window 20",
+            2,
+            integer=True,
+        )
+    kwargs["validation"] = KStepAhead(
+        k, kwargs.get("validation"), window=20 if window is None else int(window)
+    )
 
 
 def _times(args, header, data) -> np.ndarray:
@@ -217,7 +231,7 @@ def library_from_option(kind: str, degree_text: str):
         degree = _number(degree_text, "--degree", "--degree 3", 1, integer=True)
         return ps.PolynomialLibrary(degree=degree)
     if kind == "power":
-        from ..libraries import PowerLibrary
+        from ..feature_library import PowerLibrary
 
         return PowerLibrary()
     if ":" in kind:
@@ -264,7 +278,11 @@ def _states(args) -> tuple[list, list, list | None, dict]:
 
 def _validation_rows(args, n_rows, train: slice):
     if args.validation_rows is None:
-        if args.validation_window is not None and not getattr(args, "validation", None):
+        if (
+            args.validation_window is not None
+            and not getattr(args, "validation", None)
+            and getattr(args, "k_step", None) is None
+        ):
             raise UsageError(
                 "--validation-window needs --validation-rows (the record it is "
                 "taken from), e.g. --validation-rows 16000:20000"
@@ -334,26 +352,12 @@ def _grey_box(args, kwargs) -> dict:
             "on a sensor's limits out of the fit; keep fits them as readings)"
         )
     if clipped != "auto":
-        if not discover_accepts("clipped"):
-            raise UsageError(
-                "--clipped is not supported by this version of pysindy-mme's discover"
-            )
         kwargs["clipped"] = clipped
     if args.offsets:
-        if not discover_accepts("offsets"):
-            raise UsageError(
-                "--offsets is not supported by this version of pysindy-mme's discover"
-            )
         kwargs["offsets"] = True
     if args.parameters is None:
         return {}
     parameters = parse_parameters(args.parameters)
-    if not discover_accepts("parameters"):
-        raise UsageError(
-            "--parameters: grey-box parameters are not yet supported by this "
-            "version of pysindy-mme's discover; leave --parameters out and put "
-            "your best values into the model file"
-        )
     kwargs["parameters"] = parameters
     return parameters
 
@@ -361,21 +365,12 @@ def _grey_box(args, kwargs) -> dict:
 def _hidden(args, hidden, kwargs) -> None:
     """--hidden-state and --substeps into ``kwargs``."""
     if hidden:
-        if not discover_accepts("hidden_states"):
-            raise UsageError(
-                "--hidden-state is not supported by this version of pysindy-mme's "
-                "discover"
-            )
         kwargs["hidden_states"] = hidden
         if kwargs["error_states"] is None:
             del kwargs["error_states"]  # discover's default: the hidden states
     substeps = getattr(args, "substeps", None)
     if substeps is not None:
         value = _number(substeps, "--substeps", "--substeps 4", 1, integer=True)
-        if not discover_accepts("n_substeps"):
-            raise UsageError(
-                "--substeps is not supported by this version of pysindy-mme's discover"
-            )
         kwargs["n_substeps"] = value
 
 
@@ -474,10 +469,11 @@ def build_request(args) -> Request:
                 2,
                 integer=True,
             )
+    _k_step(args, kwargs)
     _hidden(args, hidden, kwargs)
     parameters = _grey_box(args, kwargs)
     return Request(
-        kwargs=kwargs,
+        kwargs=grouped_keywords(kwargs),
         y=y_all[train],
         t=t_all[train],
         u=None if u_all is None else u_all[train],

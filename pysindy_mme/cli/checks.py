@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.model import as_model_function, rowwise_jacobian
+from ..core.jacobian import rowwise_jacobian
+from ..core.model import as_model_function
 from ..core.tables import sig
 
 __all__ = ["confounded_error_states", "influence_pattern", "noise_hints"]

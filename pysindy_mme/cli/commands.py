@@ -149,8 +149,8 @@ def run_demo(args) -> int:
     """The paper's Van der Pol study, end to end."""
     import pysindy as ps
 
-    from ..discovery import discover
-    from ..libraries import PowerLibrary
+    from ..discovery import StudyOptions, discover
+    from ..feature_library import PowerLibrary
     from ..systems import van_der_pol
 
     system = van_der_pol()
@@ -174,10 +174,12 @@ def run_demo(args) -> int:
             noise_variance=system.noise_variance,
             error_states=[1],
             feature_library=library,
-            feature_names=["x1", "x2"],
             validation=(val_data.y, val_data.t),
-            assumed_equations=["x2", "0"],
-            verbose=bool(getattr(args, "verbose", False)),
+            options=StudyOptions(
+                feature_names=["x1", "x2"],
+                assumed_equations=["x2", "0"],
+                verbose=bool(getattr(args, "verbose", False)),
+            ),
         )
     print(result)
     _print_warnings(messages, result)

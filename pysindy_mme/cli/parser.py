@@ -102,6 +102,11 @@ HELP = {
     "--validation-window": "leading validation rows used to estimate the initial "
     "state (needs --validation-rows or --validation). Default: 50. Example: "
     "--validation-window 100",
+    "--k-step": "score out of sample by K-step-ahead predictions instead of a "
+    "free run: each from a state fitted to the --validation-window rows before "
+    "it (default window 20 here), starts K rows apart; on --validation / "
+    "--validation-rows when given, else on a stretch held out of the fit. "
+    "Default: none (a free run). Example: --k-step 10",
     "--substeps": "fewest RK4 steps per sample interval in every fit and "
     "simulation (the study raises it to what the model's fastest time scale "
     "needs); raise it when the report says the result changes with the "
@@ -186,6 +191,7 @@ def _discover_parser(sub):
     _add(disc, "--validation-rows", metavar="A:B")
     _add(disc, "--validation", action="append", metavar="FILE")
     _add(disc, "--validation-window", metavar="N")
+    _add(disc, "--k-step", metavar="K")
     _add(disc, "--substeps", metavar="N")
     _add(disc, "--alpha", default="0.001", metavar="P")
     _add(

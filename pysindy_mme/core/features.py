@@ -20,6 +20,8 @@ import re
 
 import numpy as np
 
+from .jacobian import rowwise_jacobian
+
 __all__ = ["SelectedFeatures"]
 
 _FACTOR = re.compile(r"^(\|)?([^\s|^]+)(\|)?(?:\^(-?\d+))?$")
@@ -166,8 +168,6 @@ class SelectedFeatures:
                 self.library.gradient(z, self._positions(chosen)), dtype=float
             )
         if self._factors is None:
-            from .model import rowwise_jacobian
-
             return rowwise_jacobian(lambda zz: self(zz, chosen), z)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for j, k in enumerate(chosen):

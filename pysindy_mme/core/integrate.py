@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jacobian import rowwise_jacobian
+
 __all__ = [
     "InputSignal",
     "FlowResult",
@@ -374,8 +376,6 @@ def simulate_guided(
     a scalar time; here it is vectorised over intervals).
     """
     from scipy.linalg import lapack
-
-    from .model import rowwise_jacobian
 
     t = np.asarray(t, dtype=float)
     x = np.array(guess, dtype=float)

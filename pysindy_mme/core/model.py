@@ -16,7 +16,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["ModelFunction", "as_model_function", "rowwise_jacobian", "simulate_model"]
+from .integrate import InputSignal, simulate
+from .jacobian import rowwise_jacobian
+
+__all__ = ["ModelFunction", "as_model_function", "simulate_model"]
 
 
 def _accepts_input(func: Callable) -> bool:
@@ -160,40 +163,6 @@ class _WithoutInput:
         return self.func(x, t)
 
 
-def rowwise_jacobian(func, x, rel_step: float | None = None, scale=None) -> np.ndarray:
-    """Central-difference Jacobian of a row-wise map, for every row at once.
-
-    ``func`` maps ``x`` of shape ``(n_rows, n)`` to ``(n_rows, n_out)`` row by
-    row; the result has shape ``(n_rows, n_out, n)`` and costs ``2 n`` calls.
-    Steps are ``rel_step * max(|x|, scale)`` (default ``eps**(1/3)``, the
-    optimum for central differences). ``scale`` (a number or one per column)
-    is each variable's typical size, the floor of the step where ``x`` is
-    near zero; by default each column's RMS over the rows (1 for a column of
-    zeros). A fixed floor of 1 would make the step depend on the units of
-    ``x``: 1e-6 m is 0.1 % of a displacement of 1e-3 m and nothing next to
-    a force of 50 N. A caller whose ``x`` is already scaled (the solver's
-    internal units) passes ``scale=1``. Non-finite differences are returned
-    as they are.
-    """
-    x = np.atleast_2d(np.asarray(x, dtype=float))
-    rel_step = np.cbrt(np.finfo(float).eps) if rel_step is None else rel_step
-    if scale is None:
-        with np.errstate(all="ignore"):
-            scale = np.sqrt(
-                np.nanmean(np.where(np.isfinite(x), x, np.nan) ** 2, axis=0)
-            )
-        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
-    h = rel_step * np.maximum(np.abs(x), scale)
-    columns = []
-    for j in range(x.shape[1]):
-        xp, xm = x.copy(), x.copy()
-        xp[:, j] += h[:, j]
-        xm[:, j] -= h[:, j]
-        with np.errstate(all="ignore"):
-            columns.append((func(xp) - func(xm)) / (2.0 * h[:, [j]]))
-    return np.stack(columns, axis=-1)
-
-
 def as_model_function(func, n_states: int, name: str = "assumed_model"):
     """Return ``func`` wrapped as a :class:`ModelFunction` (idempotent)."""
     if isinstance(func, ModelFunction):
@@ -282,7 +251,6 @@ def _run_adaptive(f, x0, t, signal, method, rtol, atol, allowed, limit):
 
 def _run_rk4(f, x0, t, signal, substeps, limit):
     """Fixed-step RK4 on the sample grid: ``(x, reason or None)``."""
-    from .integrate import simulate
 
     inputs = None if signal.is_none else signal
     out = np.full((t.size, x0.size), np.nan)
@@ -418,7 +386,6 @@ def simulate_model(
     import warnings
 
     from ..exceptions import DiscoveryWarning
-    from .integrate import InputSignal
 
     method = _check_method(method, substeps)
     x0 = np.asarray(x0, dtype=float).ravel()

@@ -20,15 +20,15 @@ from pysindy.differentiation import BaseDifferentiation
 from sklearn.exceptions import ConvergenceWarning
 
 from ..core.model import as_model_function
+from ..core.noise import difference_noise_variance, noise_covariance
 from ..core.validation import (
     check_indices,
     check_time,
 )
 from ..exceptions import DivergenceError
+from ..solver.transcription import MMESmoother
 from .error_models import ErrorModel, SolverInputs
 from .mme_checks import MMEChecks
-from .noise import difference_noise_variance, noise_covariance
-from .transcription import MMESmoother
 from .weight import WSearch, channel_ratios
 
 __all__ = ["MME", "MMEProblem", "difference_noise_variance", "noise_covariance"]
@@ -99,9 +99,11 @@ class MME(MMEChecks, BaseDifferentiation):
     assumed_model : callable, pysindy.SINDy or ExtendedModel
         Vectorised ``f(x, t)`` or ``f(x, t, u)`` with ``x`` of shape
         ``(n_samples, n_states)``, returning the same shape; or any fitted
-        model with ``predict(x, u=None)``.
+        model with ``predict(x, u=None)``. Required to fit; None only in an
+        MME handed to :func:`discover` as its settings (``mme=MME(W=5.0)``),
+        which fills it in.
     n_states : int
-        Number of states of the model.
+        Number of states of the model (required to fit, as above).
     measured : sequence of int, optional
         Indices of the measured states (``y[:, j]`` measures state
         ``measured[j]``). If none of ``measured``, ``measurement_matrix`` and
@@ -234,7 +236,7 @@ class MME(MMEChecks, BaseDifferentiation):
     what the estimator fitted before: the same inputs give bit-identical
     results. The data may be in any units, each state in its own: the
     solver works internally in one unit per state and per channel (about
-    the noise standard deviation, :mod:`~pysindy_mme.differentiation.units`),
+    the noise standard deviation, :mod:`~pysindy_mme.solver.units`),
     and every attribute is in the data's units.
     Missing measurements (NaN) are allowed when calling :meth:`fit` directly
     (pysindy's own input checks reject NaN); every measured channel needs at
@@ -253,8 +255,8 @@ class MME(MMEChecks, BaseDifferentiation):
 
     def __init__(
         self,
-        assumed_model,
-        n_states,
+        assumed_model=None,
+        n_states=None,
         measured=None,
         measurement_matrix=None,
         measurement_function=None,

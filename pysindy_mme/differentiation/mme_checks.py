@@ -13,7 +13,7 @@ import warnings
 import numpy as np
 
 from ..core.integrate import HOLDS
-from ..core.noise import estimate_noise_variance
+from ..core.noise import estimate_noise_variance, noise_covariance
 from ..core.tables import sig
 from ..core.validation import (
     as_float_array,
@@ -21,9 +21,8 @@ from ..core.validation import (
     check_indices,
     check_positive_number,
 )
+from ..solver.observability import unobservable_states
 from .error_models import resolve_error_model
-from .noise import noise_covariance
-from .observability import unobservable_states
 
 __all__ = ["MMEChecks"]
 
@@ -34,6 +33,11 @@ class MMEChecks:
     # ---------------------------------------------------------- validation
     def _check_settings(self) -> int:
         """Check the estimator's own parameters; returns ``n_states``."""
+        if self.assumed_model is None:
+            raise TypeError(
+                "assumed_model is required: the model f(x, t) or f(x, t, u) "
+                "(MME(assumed_model=f, n_states=2, ...))"
+            )
         n = self.n_states
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
             raise TypeError(f"n_states must be a positive integer, got {n!r}")

@@ -156,7 +156,7 @@ def extended_model_from_sindy(mme, sindy_model, assumed_equations=None, check=Tr
         ``sindy_model`` was fitted with another differentiation method, or
         ``mme.target`` is not ``"error"``.
     """
-    from ..discovery.extended import ExtendedModel
+    from ..core.extended import ExtendedModel
 
     coef, intercept, names, n_inputs = _fitted_parts(mme, sindy_model)
     n = int(mme.n_states)

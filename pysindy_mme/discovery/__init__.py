@@ -16,11 +16,13 @@ the :class:`ExtendedModel` (``extended.py``; as sympy or Python source:
 ``export.py``).
 """
 
+from ..core.extended import ExtendedModel
 from ..exceptions import DiscoveryWarning
-from .extended import ExtendedModel
+from .estimates import TermEstimate
 from .gain import Gain
+from .options import StudyOptions
 from .parameters import Parameter
-from .result import Discovery, TermEstimate
+from .result import Discovery
 from .study import discover
 
 __all__ = [
@@ -30,5 +32,6 @@ __all__ = [
     "ExtendedModel",
     "Gain",
     "Parameter",
+    "StudyOptions",
     "TermEstimate",
 ]

@@ -17,10 +17,12 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from sklearn.base import clone
 
 from ..core import validation as val
 from ..core.integrate import HOLDS
 from ..core.tables import sig
+from ..differentiation import MME
 from ..exceptions import DivergenceError
 from .study import discover
 
@@ -148,8 +150,9 @@ def choose_input_hold(
         state (not scored).
     **discover_options
         Everything else :func:`discover` takes (``assumed_model``,
-        ``n_states``, ``parameters``, ...), except ``input_hold`` (the choice)
-        and ``validation`` (the held-out stretch plays its part). Warnings of
+        ``n_states``, ``options``, ...), except ``validation`` (the held-out
+        stretch plays its part); an ``mme=MME(...)`` gets each candidate's
+        ``input_hold`` (the choice). Warnings of
         the candidate studies are silenced; the studies are kept in the
         result.
 
@@ -169,6 +172,12 @@ def choose_input_hold(
                 f"choose_input_hold does not take {key}= (the hold is what it "
                 "chooses; the held-out stretch of y is its validation record)"
             )
+    estimator = discover_options.pop("mme", None)
+    if estimator is not None and getattr(estimator, "input_hold", "linear") != "linear":
+        raise TypeError(
+            "choose_input_hold does not take input_hold (in mme=MME(...)): the "
+            "hold is what it chooses"
+        )
     if isinstance(holds, str):
         holds = (holds,)
     holds = tuple(holds)
@@ -202,7 +211,10 @@ def choose_input_hold(
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = discover(
-                    y[fit], t[fit], u=u[fit], input_hold=hold, **discover_options
+                    y[fit],
+                    t[fit],
+                    u=u[fit],
+                    **{**discover_options, "mme": _with_hold(estimator, hold)},
                 )
                 runs = res.validate(y[held], t[held], u[held], window=int(window))
         except DivergenceError as exc:
@@ -235,3 +247,10 @@ def choose_input_hold(
         n_held_out=n_held,
         window=int(window),
     )
+
+
+def _with_hold(estimator, hold):
+    """The user's MME settings (or the defaults) with ``input_hold=hold``."""
+    if estimator is None:
+        return MME(input_hold=hold)
+    return clone(estimator).set_params(input_hold=hold)

@@ -46,8 +46,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .output_error import OutputErrorFit, OutputErrorModel
-from .statistics import better_bic, partial_f_p_value
+from ..solver.output_error import OutputErrorFit, OutputErrorModel
+from ..solver.statistics import better_bic, partial_f_p_value
 
 __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
 

@@ -26,60 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.integrate import InputSignal, simulate_guided
-
-__all__ = ["Gain", "FreeRun", "free_run", "rmse"]
-
-
-def rmse(y, y_hat) -> np.ndarray:
-    """RMSE per channel over observed samples; inf if a prediction is not finite."""
-    y = np.asarray(y, dtype=float)
-    y_hat = np.asarray(y_hat, dtype=float)
-    observed = np.isfinite(y)
-    out = np.empty(y.shape[1])
-    for j in range(y.shape[1]):
-        obs = observed[:, j]
-        pred = y_hat[obs, j]
-        out[j] = (
-            np.inf
-            if not np.all(np.isfinite(pred))
-            else float(np.sqrt(np.mean((y[obs, j] - pred) ** 2)))
-        )
-    return out
-
-
-@dataclass
-class FreeRun:
-    """A free-run simulation of one model on a validation record.
-
-    Attributes
-    ----------
-    x0 : ndarray (n,)
-        Initial state estimated from the leading window.
-    x : ndarray (N, n)
-        The simulation (NaN after a divergence).
-    rmse : ndarray (m,)
-        After the window; inf when the run diverged.
-    diverged_at : float or None
-        Time at which the run left the bound, if it did.
-    model : callable
-        The model that ran, ``(x, t, u) -> dx/dt`` (as printed).
-    window : int or None
-        Leading samples the initial state was estimated from (None for an
-        in-sample run); longer than asked when readings in it were clipped
-        or missing.
-    """
-
-    x0: np.ndarray
-    x: np.ndarray
-    rmse: np.ndarray
-    diverged_at: float | None = None
-    model: object = None
-    window: int | None = None
-    #: with several records: each record's own run (``rmse`` is pooled)
-    records: list | None = None
-    #: with several fitting records: each record's fitted initial state
-    x0s: list | None = None
+__all__ = ["Gain"]
 
 
 @dataclass
@@ -114,6 +61,9 @@ class Gain:
     validation_source: str | None = None
     #: whether the refits without the held-out stretch converged
     held_out_converged: bool = True
+    #: how the models were run and scored out of sample (the protocol's
+    #: sentence, :mod:`pysindy_mme.protocols`)
+    validation_method: str | None = None
 
     @property
     def ratio(self) -> np.ndarray:
@@ -145,6 +95,7 @@ class Gain:
             out["validation_ratio"] = plain(self.validation_ratio)
             out["validation_window"] = self.validation_window
             out["validation_source"] = self.validation_source
+            out["validation_method"] = self.validation_method
         out["notes"] = list(self.notes)
         return out
 
@@ -154,27 +105,3 @@ def _ratio(a, b):
     a, b = np.asarray(a, float), np.asarray(b, float)
     ok = np.isfinite(a) & np.isfinite(b) & (b > 0)
     return np.where(ok, a / np.where(ok, b, 1.0), np.nan)
-
-
-def free_run(model, x0, t, inputs: InputSignal, substeps, measure, y, window, guess):
-    """Simulate from ``x0`` over ``t``; RMSE of ``measure(x)`` after ``window``.
-
-    ``model(x (K, n), t (K,), u (K, m) or None) -> dx/dt``. The run is the
-    exact RK4 free run from ``x0``, computed for the whole record at once
-    from ``guess`` (a state estimate of the record: it only speeds Newton's
-    method up, the answer does not depend on it; see
-    :func:`~pysindy_mme.core.integrate.simulate_guided`). The bound is 1e6
-    times the larger of the data's and the initial state's magnitude.
-    """
-    scale = max(float(np.nanmax(np.abs(y))), float(np.max(np.abs(x0))), 1e-300)
-    sim = simulate_guided(model, x0, t, inputs, substeps, guess, bound=1e6 * scale)
-    x = sim.x[0]
-    at = int(sim.diverged_at[0])
-    err = rmse(y[window:], measure(x)[window:])
-    return FreeRun(
-        x0=x0,
-        x=x,
-        rmse=err,
-        diverged_at=None if at < 0 else float(t[at]),
-        model=model,
-    )

@@ -151,6 +151,11 @@ class _Augmented:
     def __init__(self, inner, hidden: HiddenStates):
         self.inner, self.hidden = inner, hidden
 
+    @property
+    def hidden_states(self) -> HiddenStates:
+        """The states appended (read by the exporter, which knows no study)."""
+        return self.hidden
+
     def __call__(self, x, t, u=None):
         x = np.asarray(x, dtype=float)
         n = self.hidden.n_visible
@@ -162,6 +167,11 @@ class _AugmentedGrey:
 
     def __init__(self, model, hidden: HiddenStates):
         self.model, self.hidden = model, hidden
+
+    @property
+    def hidden_states(self) -> HiddenStates:
+        """The states appended (read by the exporter, which knows no study)."""
+        return self.hidden
 
     def __call__(self, x, t, u, p):
         x = np.asarray(x, dtype=float)

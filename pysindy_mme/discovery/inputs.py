@@ -23,11 +23,19 @@ from ..core.noise import describe_noise, estimate_noise_variance
 from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
 from ..differentiation.error_models import resolve_error_model
+from ..protocols import HeldOut, LeadingWindow, ValidationProtocol
 from .hidden import HiddenStates, add_hidden_states
 from .parameters import parameter_spec
 from .placement import default_error_states
 
-__all__ = ["Study", "Record", "check_study", "MME_KEYWORDS", "MIN_RECORD_SAMPLES"]
+__all__ = [
+    "Study",
+    "Record",
+    "check_study",
+    "settings_into_estimator",
+    "MME_KEYWORDS",
+    "MIN_RECORD_SAMPLES",
+]
 
 #: fewest samples of one record among several
 MIN_RECORD_SAMPLES = 10
@@ -180,6 +188,18 @@ class Study:
     validation_records: list | None = None
     #: states added by ``hidden_states`` (None without)
     hidden: HiddenStates | None = None
+    #: how the models are scored out of sample (:mod:`pysindy_mme.protocols`):
+    #: a record protocol with validation records, a :class:`HeldOut` without
+    protocol: ValidationProtocol | None = None
+
+    @property
+    def validation_protocol(self) -> ValidationProtocol:
+        """:attr:`protocol`, or the default one (a result loaded from a file)."""
+        if self.protocol is not None:
+            return self.protocol
+        if self.validation is not None:
+            return LeadingWindow(window=self.validation_window)
+        return HeldOut(window=self.validation_window)
 
     @property
     def n_records(self) -> int:
@@ -254,6 +274,47 @@ def _optimizer(optimizer):
             f"optimizer must be a pysindy optimizer, got {type(optimizer).__name__}"
         )
     return optimizer
+
+
+#: MME's defaults of the settings discover may fill in (unset: these values)
+_UNSET = {
+    "assumed_model": None,
+    "n_states": None,
+    "measured": None,
+    "noise_variance": "auto",
+    "error_states": None,
+}
+
+
+def settings_into_estimator(mme, given: dict):
+    """``(mme, given)`` with discover's model and measurement keywords moved
+    into the user's :class:`MME` where it leaves them unset.
+
+    ``mme=MME(error_model="ou", W=5.0)`` carries the estimator's settings;
+    ``assumed_model``, ``n_states``, ``measured``, ``noise_variance`` and
+    ``error_states`` given to discover fill it in. A setting given in both
+    places raises, naming it (the two could disagree silently otherwise).
+    """
+    if mme is None:
+        return None, given
+    if not isinstance(mme, MME):
+        raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
+    params = mme.get_params(deep=False)
+    fill, both = {}, []
+    for name, value in given.items():
+        if value is None:
+            continue
+        unset = _UNSET[name]
+        current = params[name]
+        if current is unset or (isinstance(unset, str) and current == unset):
+            fill[name] = value
+        else:
+            both.append(name)
+    if both:
+        raise ValueError(
+            f"give {', '.join(both)} either to MME (mme=...) or to discover, not both"
+        )
+    return clone(mme).set_params(**fill), {name: None for name in given}
 
 
 def _estimator(mme, given: dict, u, input_hold, parameters: dict):
@@ -401,6 +462,11 @@ class AtParameters:
 
     def __call__(self, x, t, u):
         return self.model(x, t, u, self.values)
+
+    @property
+    def parameter_values(self) -> dict:
+        """The values (read by the exporter, which knows no study)."""
+        return self.values
 
 
 def _columns(frame):
@@ -742,6 +808,29 @@ def _check_options(alpha, min_effect, refit, input_hold, offsets, window):
     return alpha, min_effect, int(window)
 
 
+def _protocol(validation, window):
+    """``(protocol, records, window)`` from ``validation=``: a protocol object
+    carries its records and window; records alone get the benchmarks' free
+    run (:class:`LeadingWindow`) with ``validation_window``."""
+    if not isinstance(validation, ValidationProtocol):
+        return LeadingWindow(window=window), validation, window
+    validation._check()
+    if window != 50 and window != validation.window:
+        raise ValueError(
+            f"validation_window={window!r} and {validation!r} disagree: give the "
+            "window to the protocol only"
+        )
+    return validation, validation.records, validation.window
+
+
+def _held_out(protocol) -> HeldOut:
+    """The protocol without validation records: a :class:`HeldOut` stretch,
+    scored the way ``protocol`` scores a record."""
+    if isinstance(protocol, HeldOut):
+        return protocol
+    return HeldOut(window=protocol.window, method=protocol)
+
+
 def _noise_record(problem) -> dict:
     """How the noise was found (the report's first lines) and, when the data
     cannot tell it (a quantised channel at its quantisation level), why."""
@@ -884,6 +973,7 @@ def check_study(
     **mme_keywords,
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
+    protocol, validation, validation_window = _protocol(validation, validation_window)
     several = _training_records(y, t, u)
     starts = np.zeros(0, dtype=int)
     if several is not None:
@@ -1021,5 +1111,6 @@ def check_study(
         starts=starts,
         validation_records=validation_records,
         hidden=hidden,
+        protocol=protocol if validation is not None else _held_out(protocol),
         **_noise_record(problem),
     )

@@ -359,10 +359,11 @@ def _gain(res) -> list:
         )
     if validation:
         source = g.validation_source or "the validation record"
-        out.append(
-            f"Out of sample ('valid.'): {source}; initial state from its first "
-            f"{g.validation_window} samples, then a free run; RMSE over the rest."
+        method = g.validation_method or (
+            f"initial state from its first {g.validation_window} samples, then a "
+            "free run; RMSE over the rest."
         )
+        out.append(f"Out of sample ('valid.'): {source}; {method}")
     return out
 
 

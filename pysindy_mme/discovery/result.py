@@ -6,96 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..exceptions import NotSavedError
+from .estimates import ParameterEstimate
 from .report import format_discovery
 
-__all__ = ["Discovery", "ParameterEstimate", "TermEstimate"]
-
-
-@dataclass(frozen=True)
-class TermEstimate:
-    """One identified correction term.
-
-    Attributes
-    ----------
-    state : str
-        The equation it corrects (``state``').
-    feature : str
-        Library feature name.
-    coefficient : float
-        Output-error coefficient (fitted to the measurements).
-    regression_coefficient : float
-        Coefficient from the stepwise regression of ``d(t)`` (biased to 0;
-        NaN for a term the regression did not propose).
-    std_error : float
-        NaN when the data do not determine it.
-    ci_low, ci_high : float
-        95 % confidence interval of ``coefficient``.
-    partial_f : float
-        Partial F-ratio in the stepwise regression (NaN for other optimizers
-        or terms it did not propose).
-    p_value : float
-        Wald test of ``coefficient`` in the output-error fit.
-    rms_term : float
-        RMS of the term (coefficient times function) along the fitted
-        trajectory: its size in the units of ``state``'.
-    share_of_correction : float
-        ``rms_term`` over the RMS of the whole correction of that equation.
-    share_of_dynamics : float
-        ``rms_term`` over the RMS of the extended model's ``state``'.
-    """
-
-    state: str
-    feature: str
-    coefficient: float
-    regression_coefficient: float
-    std_error: float
-    ci_low: float
-    ci_high: float
-    partial_f: float
-    p_value: float
-    rms_term: float = float("nan")
-    share_of_correction: float = float("nan")
-    share_of_dynamics: float = float("nan")
-
-
-@dataclass(frozen=True)
-class ParameterEstimate:
-    """One parameter of the assumed model (grey box), fitted to the data.
-
-    Attributes
-    ----------
-    name : str
-    initial : float
-        The user's guess.
-    assumed_fit : float
-        Fitted with the assumed model alone (step 1).
-    value : float
-        Fitted jointly with the correction (the extended model's value).
-    std_error, ci_low, ci_high : float
-        Of ``value`` (95 % interval; NaN when not determined, or at a bound).
-    lower, upper : float
-        The user's bounds (``-inf`` / ``inf``: none).
-    at_bound : bool
-        ``value`` is on a bound the data push it against: the data would
-        take it further, so it is a limit, not an estimate (its standard
-        error is NaN, the others' are computed with it held there).
-    """
-
-    name: str
-    initial: float
-    assumed_fit: float
-    value: float
-    std_error: float
-    ci_low: float
-    ci_high: float
-    lower: float = -np.inf
-    upper: float = np.inf
-    at_bound: bool = False
-
-    @property
-    def change(self) -> float:
-        """Relative change of ``value`` from ``initial``."""
-        return (self.value - self.initial) / self.initial if self.initial else np.nan
+__all__ = ["Discovery", "SavedDiscovery"]
 
 
 @dataclass
@@ -335,21 +250,28 @@ class Discovery:
             if tuple(s) not in kept
         ]
 
-    def validate(self, y, t, u=None, window: int | None = None) -> dict:
-        """Both models on another record, by the benchmarks' free-run protocol.
+    def validate(self, y, t, u=None, window: int | None = None, protocol=None) -> dict:
+        """Both models on another record, by a validation protocol.
 
-        Each model's initial state is fitted to the first ``window`` samples
-        (default: the study's ``validation_window``), then it runs free over
-        the whole record; the RMSE is taken over the samples after the
-        window (a run that diverges has none: ``inf``, and ``diverged_at``).
-        Clipped readings are censored as in the study (``clipped``), and a
-        clipped stretch at either end of the record is cut: the runs then
-        cover the samples between.
+        By default the benchmarks' free run (the study's record protocol,
+        :class:`~pysindy_mme.protocols.LeadingWindow` unless the study was
+        given another): each model's initial state is fitted to the first
+        ``window`` samples (default: the study's ``validation_window``),
+        then it runs free over the whole record; the RMSE is taken over the
+        samples after the window (a run that diverges has none: ``inf``,
+        and ``diverged_at``). Clipped readings are censored as in the study
+        (``clipped``), and a clipped stretch at either end of the record is
+        cut: the runs then cover the samples between.
 
         Parameters
         ----------
         y : array-like (n_samples, n_measured); t : array-like (n_samples,)
         u : array-like (n_samples, n_inputs), optional
+        window : int, optional
+            Leading samples the initial states are fitted to.
+        protocol : ValidationProtocol, optional
+            How to run and score the models on the record, for example
+            ``KStepAhead(10)`` (:mod:`pysindy_mme.protocols`).
 
         Returns
         -------
@@ -357,21 +279,32 @@ class Discovery:
             ``{"assumed": FreeRun, "extended": FreeRun}`` (``x0``, ``x``,
             ``rmse`` per channel, ``diverged_at``).
         """
-        from dataclasses import replace
-
+        from ..protocols import ValidationProtocol
         from .inputs import check_record
-        from .steps import validation_runs
 
+        if protocol is None:
+            protocol = self.study.validation_protocol
+            default_window = self.study.validation_window
+        else:
+            default_window = getattr(protocol, "window", None)
+        if not isinstance(protocol, ValidationProtocol):
+            raise TypeError(
+                "protocol must be a validation protocol (pysindy_mme.protocols: "
+                f"LeadingWindow(), KStepAhead(k)), got {protocol!r}"
+            )
+        protocol._check()
+        window = default_window if window is None else window
+        if isinstance(window, bool) or not isinstance(window, (int, np.integer)):
+            raise ValueError(f"window must be an integer >= 2, got {window!r}")
+        if window < 2:
+            raise ValueError(f"window must be an integer >= 2, got {window!r}")
         record = check_record(self.study, y, t, u, "y")
-        study = self.study
-        if window is not None:
-            study = replace(study, validation_window=int(window))
         models = {
-            "assumed": study.model_at(self.assumed.fit.physical),
+            "assumed": self.study.model_at(self.assumed.fit.physical),
             "extended": self.extended_model,
         }
-        return validation_runs(
-            study, models, self.proposals.evaluate, self.substeps, record
+        return protocol.score(
+            self.study, models, self.proposals.evaluate, self.substeps, record, window
         )
 
     @property
@@ -476,7 +409,7 @@ class Discovery:
         """
         from .storage import load
 
-        return load(path, assumed_model=assumed_model)
+        return load(path, SavedDiscovery, assumed_model=assumed_model)
 
     def plot(self, x_true=None, d_true=None, path=None):
         """Draw the study (needs matplotlib: ``pip install pysindy-mme[plot]``).
@@ -578,3 +511,28 @@ def _clipped_dict(study) -> dict:
             "validation_record": list(study.validation_clipped_cut),
         },
     }
+
+
+class SavedDiscovery(Discovery):
+    """A :class:`Discovery` loaded from a file (:meth:`Discovery.load`).
+
+    Reports, tables and plots as the original did; what needs the user's
+    code raises :class:`~pysindy_mme.NotSavedError` (module docstring).
+    ``saved`` holds the file's ``path``, ``version``, ``package_version``
+    and the ``report`` as it was printed when saved.
+    """
+
+    @property
+    def assumed_output(self) -> np.ndarray:
+        return self.saved["assumed_output"]
+
+    @property
+    def extended_correction(self) -> np.ndarray:
+        return self.saved["extended_correction"]
+
+    def validate(self, y, t, u=None, window=None, protocol=None):
+        raise NotSavedError(
+            "validate() refits both models on another record, which needs the "
+            "fitted MME estimator and the library, not saved: run discover() "
+            "again (with validation=) for a new record"
+        )

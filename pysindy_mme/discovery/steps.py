@@ -22,15 +22,17 @@ import numpy as np
 from scipy import stats
 from sklearn.base import clone
 
-from ..core.integrate import InputSignal
-from ..core.model import ParametricModel, rowwise_jacobian
+from ..core.jacobian import rowwise_jacobian
+from ..core.model import ParametricModel
 from ..core.tables import sig
 from ..exceptions import DivergenceError
+from ..protocols import ValidationContext
+from ..protocols.runs import FreeRun, free_run, measurement_function, pooled_runs
+from ..solver.output_error import OutputErrorFit, OutputErrorModel
 from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
 from .doubts import stop_reason
-from .gain import FreeRun, Gain, free_run
-from .output_error import OutputErrorFit, OutputErrorModel
+from .gain import Gain
 
 __all__ = [
     "AssumedFit",
@@ -44,10 +46,7 @@ __all__ = [
     "output_error_engine",
     "rk4_substeps",
     "step_size_check",
-    "validation_runs",
     "in_sample_run",
-    "held_out_runs",
-    "held_out_split",
     "hold_out",
     "overshoots",
 ]
@@ -635,67 +634,23 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
             )
     if study.validation is None:
         return gain
-    records = study.validation_records or [study.validation]
-    if len(records) == 1:
-        runs = validation_runs(study, models, features, substeps)
-        source = "the validation record"
-    else:
-        runs = pooled_runs(
-            [
-                validation_runs(study, models, features, substeps, record)
-                for record in records
-            ],
-            [record[0] for record in records],
-        )
-        source = f"the {len(records)} validation records (RMSE pooled over them)"
-    _set_out_of_sample(gain, runs, study.validation_window, source)
+    outcome = study.validation_protocol.evaluate(
+        ValidationContext(study, models, features, substeps, runs)
+    )
+    _set_out_of_sample(gain, outcome)
     return gain
 
 
-def pooled_runs(per_record: list, ys: list) -> dict:
-    """One :class:`FreeRun` per model from its runs on several records.
-
-    ``x`` is the records' runs one after the other, ``x0`` the first
-    record's initial state, ``records`` the runs themselves, and ``rmse``
-    pooled over the records: the root of the mean squared error over every
-    sample each run scores (after its window), all records together. A run
-    that diverged on any record has no pooled RMSE (inf).
-    """
-    out = {}
-    for name in per_record[0]:
-        runs = [r[name] for r in per_record]
-        sq = np.zeros(ys[0].shape[1])
-        count = np.zeros(ys[0].shape[1])
-        for run, y in zip(runs, ys):
-            skip = run.window or 0
-            y_s = np.asarray(y, float)[skip:]
-            # each record's RMSE times its count is its sum of squares
-            seen = np.isfinite(y_s).sum(axis=0)
-            sq += np.asarray(run.rmse, float) ** 2 * seen
-            count += seen
-        with np.errstate(all="ignore"):
-            pooled = np.sqrt(sq / np.maximum(count, 1))
-        diverged = [r.diverged_at for r in runs if r.diverged_at is not None]
-        out[name] = FreeRun(
-            x0=runs[0].x0,
-            x=np.vstack([r.x for r in runs]),
-            rmse=np.where(np.isfinite(pooled), pooled, np.inf),
-            diverged_at=diverged[0] if diverged else None,
-            model=runs[0].model,
-            window=runs[0].window,
-            records=runs,
-        )
-    return out
-
-
-def _set_out_of_sample(gain, runs, window, source) -> None:
-    # the window the runs used (longer when readings in it were missing)
-    window = getattr(runs["assumed"], "window", None) or window
+def _set_out_of_sample(gain, outcome) -> None:
+    """The out-of-sample numbers of a protocol's ``outcome`` on ``gain``."""
+    runs, source = outcome.runs, outcome.source
     gain.validation_runs = runs
     gain.validation_rmse_assumed = runs["assumed"].rmse
     gain.validation_rmse_extended = runs["extended"].rmse
-    gain.validation_window = window
+    gain.validation_window = outcome.window
     gain.validation_source = source
+    gain.validation_method = outcome.method
+    gain.held_out_converged = bool(outcome.converged)
     for name, run in runs.items():
         if run.diverged_at is not None:
             gain.notes.append(
@@ -746,83 +701,12 @@ def in_sample_run(study, fit, model, substeps) -> FreeRun:
     return run
 
 
-#: share of the fitting record held out when no validation record is given
-HELD_OUT_FRACTION = 0.2
-#: fewest samples of a held-out stretch beyond the initial-state window
-MIN_HELD_OUT = 30
 #: the refits without the held-out data stop at this relative predicted
 #: decrease of their cost: what is measured on them is a free-run RMSE, which
 #: a remaining 0.1 % of the cost moves by about 0.05 %, against the 10 %
 #: margin an explanation needs (a large-residual fit of the assumed model,
 #: or one of a hysteretic law, creeps toward 1e-9 for hundreds of iterations)
 HELD_OUT_TOL = 1e-3
-
-
-def held_out_split(study, assumed_run=None) -> tuple | None:
-    """``(start, stop)`` of the stretch to hold out, or None.
-
-    ``HELD_OUT_FRACTION`` of the record (at least the validation window
-    plus ``MIN_HELD_OUT`` samples) at one of its ends, when what is left for
-    fitting keeps at least four times as many samples. Which end: the one
-    where the assumed model's free run (``assumed_run``) misses the data
-    more, so that the stretch holds something to explain (a decaying
-    transient shows its effect at the start, not at the end). The choice
-    reads the assumed model only, never the extended one; the end stretch
-    is the default.
-    """
-    n = study.t.size
-    window = min(study.validation_window, max(2, n // 20))
-    size = max(int(round(HELD_OUT_FRACTION * n)), window + MIN_HELD_OUT)
-    if n - size < 4 * size or size - window < MIN_HELD_OUT:
-        return None
-    if assumed_run is not None:
-        r = np.asarray(study.y, float) - _measure(study)(assumed_run.x)
-        w = np.diag(np.linalg.inv(study.noise_cov))
-        with np.errstate(all="ignore"):
-            first = np.nanmean(r[:size] ** 2 * w)
-            last = np.nanmean(r[-size:] ** 2 * w)
-        if np.isfinite(first) and np.isfinite(last) and first > last:
-            return 0, size
-    return n - size, n
-
-
-def held_out_runs(study, fits: dict, build_extended, features, substeps, runs=None):
-    """Both models refitted without a held-out stretch, then run free on it.
-
-    The structure (the kept terms) is the study's; the parameters,
-    coefficients and initial states are refitted on the rest of the record
-    only, so the stretch is never used for fitting. Returns ``(runs, source,
-    window, converged)`` or None when the record is too short to spare one.
-    ``build_extended(fit) -> model`` makes the printed model of a fit;
-    ``runs``: the in-sample free runs (the assumed one picks the stretch).
-    """
-
-    if study.n_records > 1:
-        return _held_out_record(study, fits, build_extended, features, substeps)
-    split = held_out_split(study, None if runs is None else runs["assumed"])
-    if split is None:
-        return None
-    start, stop = split
-    n = study.t.size
-    keep = slice(stop, n) if start == 0 else slice(0, start)
-    window = min(study.validation_window, max(2, (stop - start) // 5))
-    u = study.u
-    rest, models, converged = _refit_without(
-        study, keep, window, fits, build_extended, features, substeps
-    )
-    record = (
-        study.y[start:stop],
-        study.t[start:stop],
-        None if u is None else u[start:stop],
-    )
-    runs = validation_runs(rest, models, features, substeps, record)
-    where = "first" if start == 0 else "last"
-    source = (
-        f"a held-out stretch (t = {sig(study.t[start])} .. "
-        f"{sig(study.t[stop - 1])}, the {where} {stop - start} samples; both "
-        "models refitted without it)"
-    )
-    return runs, source, window, converged
 
 
 def _refit_without(
@@ -865,48 +749,23 @@ def _settled(fit) -> bool:
     return bool(fit.ok and (fit.converged or fit.message.startswith("converged")))
 
 
-def _held_out_record(study, fits, build_extended, features, substeps):
-    """:func:`held_out_runs` for several records: the last record held out
-    whole (both models refitted on the others), None when it is too short."""
-
-    last = study.record_slices[-1]
-    size = last.stop - last.start
-    window = min(study.validation_window, max(2, size // 5))
-    if size - window < MIN_HELD_OUT:
-        return None
-    keep = slice(0, last.start)
-    u = study.u
-    rest, models, converged = _refit_without(
-        study,
-        keep,
-        window,
-        fits,
-        build_extended,
-        features,
-        substeps,
-        starts=np.asarray(study.starts[:-1], dtype=int),
-    )
-    record = (study.y[last], study.t[last], None if u is None else u[last])
-    runs = validation_runs(rest, models, features, substeps, record)
-    source = (
-        f"the last record held out whole ({size} samples, t = "
-        f"{sig(study.t[last.start])} .. {sig(study.t[last.stop - 1])}; both models "
-        "refitted on the other records)"
-    )
-    return runs, source, window, converged
-
-
 def hold_out(study, gain, fits, build_extended, features, substeps) -> None:
-    """Out-of-sample numbers on ``gain`` from a held-out stretch (no
-    validation record; nothing when the record cannot spare one)."""
-    held = held_out_runs(
-        study, fits, build_extended, features, substeps, gain.in_sample_runs
+    """Out-of-sample numbers on ``gain`` from a stretch held out of the
+    fitting data (no validation record; nothing when the data cannot spare
+    one): the study's :class:`~pysindy_mme.protocols.HeldOut` protocol, both
+    models refitted without the stretch by :func:`_refit_without`."""
+
+    def refit_without(keep, window, **rest):
+        return _refit_without(
+            study, keep, window, fits, build_extended, features, substeps, **rest
+        )
+
+    context = ValidationContext(
+        study, {}, features, substeps, gain.in_sample_runs, refit_without
     )
-    if held is None:
-        return
-    runs, source, window, converged = held
-    _set_out_of_sample(gain, runs, window, source)
-    gain.held_out_converged = bool(converged)
+    outcome = study.validation_protocol.evaluate(context)
+    if outcome is not None:
+        _set_out_of_sample(gain, outcome)
 
 
 def _offsets(study, fit):
@@ -914,76 +773,7 @@ def _offsets(study, fit):
 
 
 def _measure(study):
-    C = study.measurement
-    if callable(C):
-        return lambda x: np.asarray(C(np.atleast_2d(x)), dtype=float)
-    return lambda x: np.asarray(x) @ np.asarray(C).T
-
-
-def validation_runs(study, models: dict, features, substeps, record=None) -> dict:
-    """Initial state from the leading window, then a free run, per model.
-
-    ``record``: ``(y, t, u)`` (default: the study's validation record). MME
-    on the record gives the starting trajectory of the window fits and the
-    guess the free runs start Newton's method from (the free runs themselves
-    depend on the window only).
-    """
-    y_v, t_v, u_v = study.validation if record is None else record
-    window = observed_window(study.validation_window, y_v)
-    inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
-    measure = _measure(study)
-    estimate = clone(study.mme).set_params(u=u_v)
-    with warnings.catch_warnings():
-        # an internal start-up estimate: its notes are not about the user's study
-        warnings.simplefilter("ignore")
-        estimate.fit(y_v, t_v)
-    guess = np.asarray(estimate.smoothed_x_)
-    runs = {}
-    for name, model_rhs in models.items():
-
-        def base(x, t, u, p, model_rhs=model_rhs):
-            return model_rhs(x, t, u)
-
-        m_off = y_v.shape[1] if study.offsets else 0
-        window_fit = OutputErrorModel(
-            base,
-            study.n_states,
-            features,
-            y_v[:window],
-            t_v[:window],
-            inputs_v.subset(0, window),
-            study.noise_cov,
-            study.measurement,
-            n_offsets=m_off,
-            n_substeps=substeps,
-        ).fit((), np.zeros(m_off), guess[:window])
-        offsets = window_fit.offsets if m_off else 0.0
-
-        def shifted(x, offsets=offsets):
-            return measure(x) + offsets
-
-        runs[name] = free_run(
-            model_rhs,
-            window_fit.x[0],
-            t_v,
-            inputs_v,
-            substeps,
-            shifted,
-            y_v,
-            window,
-            guess,
-        )
-        runs[name].window = window
-    return runs
-
-
-def observed_window(window, y) -> int:
-    """Leading samples holding ``window`` readings (rows with a finite
-    reading), at most all but one: a window of censored (clipped) or missing
-    readings is lengthened until the initial state has ``window`` to go by."""
-    seen = np.cumsum(np.any(np.isfinite(np.asarray(y, float)), axis=1))
-    reach = int(np.searchsorted(seen, window)) + 1  # rows up to the window-th
-    return int(min(max(window, reach), y.shape[0] - 1))
+    return measurement_function(study.measurement)
 
 
 #: a free run beyond the data's extreme reading by more than this many noise

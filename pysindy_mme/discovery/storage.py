@@ -92,13 +92,11 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import NotSavedError
-from .result import Discovery
 
 __all__ = [
     "save",
     "load",
     "read",
-    "SavedDiscovery",
     "FORMAT",
     "VERSION",
     "RECORD_TYPES",
@@ -172,10 +170,11 @@ _SKIP = {"FreeRun": {"model"}}
 def _record_types() -> dict:
     from ..core.sensors import ClippedChannel, Clipping
     from ..optimizers.selection import Step
-    from .gain import FreeRun, Gain
+    from ..protocols.runs import FreeRun
+    from .estimates import ParameterEstimate, TermEstimate
+    from .gain import Gain
     from .identifiability import TradeOff
     from .memory import MemoryEvidence
-    from .result import ParameterEstimate, TermEstimate
 
     types = (
         TermEstimate,
@@ -313,7 +312,7 @@ def _library_dict(res) -> dict:
     if callable(own):
         kinked = [int(i) for i in own(list(range(len(names))))]
     else:
-        from .extended import _KINKED_NAME
+        from ..core.extended import _KINKED_NAME
 
         kinked = [i for i, n in enumerate(names) if _KINKED_NAME.search(n)]
     return {
@@ -397,7 +396,7 @@ def _result_dict(res) -> dict:
 
 def save(res, path) -> None:
     """Write ``res`` to ``path`` in the format of the module docstring."""
-    from .. import __version__
+    from .._version import __version__
 
     writer = _Writer()
     result = {k: writer.encode(v, k) for k, v in _result_dict(res).items()}
@@ -599,7 +598,7 @@ _MODEL_HOW = "load the result with Discovery.load(path, assumed_model=f)"
 
 # ------------------------------------------------------------------ loading
 def _fit(values):
-    from .output_error import OutputErrorFit
+    from ..solver.output_error import OutputErrorFit
 
     if values is None:
         return None
@@ -666,7 +665,7 @@ def _study(values: dict, mme, library, optimizer, model):
 
 
 def _extended(values: dict, study, library, model):
-    from .extended import ExtendedModel
+    from ..core.extended import ExtendedModel
     from .inputs import AtParameters
 
     coef = np.asarray(values["coefficients"], dtype=float)
@@ -688,8 +687,9 @@ def _extended(values: dict, study, library, model):
     )
 
 
-def load(path, assumed_model=None):
-    """A :class:`SavedDiscovery` from a file written by :func:`save`."""
+def load(path, result_class, assumed_model=None):
+    """A ``result_class`` (:class:`~.result.SavedDiscovery`: this module
+    does not import the result) from a file written by :func:`save`."""
     from .confirm import Confirmation
     from .propose import Proposals
     from .steps import AssumedFit, ErrorEstimate
@@ -737,7 +737,7 @@ def load(path, assumed_model=None):
         log=c["log"],
     )
     extended = _extended(r["extended_model"], study, library, model)
-    result = SavedDiscovery(
+    result = result_class(
         study=study,
         assumed=assumed,
         estimate=estimate,
@@ -756,28 +756,3 @@ def load(path, assumed_model=None):
         **r["derived"],
     }
     return result
-
-
-class SavedDiscovery(Discovery):
-    """A :class:`~.result.Discovery` loaded from a file (:func:`load`).
-
-    Reports, tables and plots as the original did; what needs the user's
-    code raises :class:`~pysindy_mme.NotSavedError` (module docstring).
-    ``saved`` holds the file's ``path``, ``version``, ``package_version``
-    and the ``report`` as it was printed when saved.
-    """
-
-    @property
-    def assumed_output(self) -> np.ndarray:
-        return self.saved["assumed_output"]
-
-    @property
-    def extended_correction(self) -> np.ndarray:
-        return self.saved["extended_correction"]
-
-    def validate(self, y, t, u=None, window=None):
-        raise NotSavedError(
-            "validate() refits both models on another record, which needs the "
-            "fitted MME estimator and the library, not saved: run discover() "
-            "again (with validation=) for a new record"
-        )

@@ -10,9 +10,11 @@ import warnings
 
 import numpy as np
 
+from ..core.extended import ExtendedModel
 from ..core.progress import Progress
 from ..core.tables import p_value, sig
 from ..exceptions import DiscoveryWarning
+from ..solver.statistics import partial_f_p_value, residual_inflation
 from .conclusion import (
     RUNAWAY_FACTOR,
     TRADE_OFF_CORRELATION,
@@ -21,13 +23,13 @@ from .conclusion import (
     conclude,
 )
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
-from .extended import ExtendedModel
+from .estimates import TermEstimate
 from .identifiability import exact_trade_offs
-from .inputs import check_study
+from .inputs import check_study, settings_into_estimator
 from .memory import memory_evidence
+from .options import as_options, refuse_moved
 from .propose import propose_terms
-from .result import Discovery, TermEstimate
-from .statistics import partial_f_p_value, residual_inflation
+from .result import Discovery
 from .steps import (
     baseline,
     confirm_on_measurements,
@@ -57,24 +59,11 @@ def discover(
     error_states=None,
     feature_library=None,
     optimizer=None,
-    feature_names=None,
     u=None,
     validation=None,
-    W="auto",
-    error_model="white",
-    alpha=0.001,
-    refit=True,
-    assumed_equations=None,
     mme=None,
-    input_hold="linear",
-    validation_window=50,
-    parameters=None,
-    offsets=False,
-    min_effect=0.01,
-    clipped="auto",
-    hidden_states=None,
-    n_substeps=1,
-    verbose=False,
+    options=None,
+    **removed,
 ):
     """Find what an assumed model gets wrong, name the cause, fix it, measure it.
 
@@ -109,117 +98,81 @@ def discover(
         ``PolynomialLibrary(degree=3)``.
     optimizer : pysindy optimizer, optional
         Default :class:`FloatingFStepwise` ``()``.
-    feature_names : list of str, optional
-        Names of the states followed by the inputs (default ``x0, x1, ...``
-        and ``u0, ...``).
     u : array-like (n_samples, n_inputs), optional
         Known inputs on the sample grid.
-    validation : tuple (y, t) or (y, t, u), Record, or a list of them, optional
-        Another record, used only to measure the gain out of sample: each
-        model's initial state is estimated from its first
-        ``validation_window`` samples, then the model runs free. With a
-        list, each record gets that protocol and the RMSEs are pooled over
-        the records (each record's own runs: ``gain.validation_runs[name].
-        records``).
-    W : "auto", "ml" or positive number, default "auto"
-        MME weight (see :class:`MME`).
-    error_model : str or ErrorModel, default "white"
-        MME's prior on the model error: ``"white"`` (the paper),
-        ``"random_walk"`` or any registered name, or an object (see
-        :class:`MME` and :mod:`~pysindy_mme.differentiation.error_models`).
-    alpha : float, default 0.001
-        Significance level of the tests (consistency, terms, F-test of the
-        extended against the assumed model). Each term is tested at
-        ``alpha / n_candidates`` (Bonferroni over the library), so the chance
-        that a study reports any term when the assumed model is right stays
-        below ``alpha``: one in a thousand by default.
-    refit : bool
-        Settle the terms on the measurements by output error (recommended).
-    assumed_equations : list of str, optional
-        Text of the assumed right-hand sides for the printed equations.
+    validation : record(s) or a validation protocol, optional
+        How the gain is measured out of sample (:mod:`pysindy_mme.protocols`).
+        Another record, ``(y, t)``, ``(y, t, u)`` or a
+        :class:`~pysindy_mme.Record`, or a list of them: each model's initial
+        state is estimated from the record's first 50 samples, then the model
+        runs free (:class:`~pysindy_mme.protocols.LeadingWindow`; with a list
+        the RMSEs are pooled over the records, each record's own runs in
+        ``gain.validation_runs[name].records``). A protocol object sets the
+        window and the way of scoring:
+        ``LeadingWindow(record, window=100)``, ``KStepAhead(10, record)``
+        (predictions 10 samples ahead), ``HeldOut(fraction=0.2)`` (a stretch
+        of the fitting data held out, both models refitted without it: the
+        default when no record is given), or your own subclass of
+        :class:`~pysindy_mme.protocols.ValidationProtocol`.
     mme : MME, optional
-        An estimator carrying every MME setting (``measurement_matrix``,
-        ``measurement_function``, ``n_substeps``, ``max_iter``, ...); then
-        ``assumed_model``, ``n_states``, ``measured``, ``noise_variance``,
-        ``error_states``, ``W`` and ``error_model`` come from it and must
-        not be given here too.
-    input_hold : {"linear", "zoh"}
-        How the inputs act between samples (see :class:`MME`).
-    validation_window : int, default 50
-        Leading samples of the validation record used to estimate the initial
-        state; the validation RMSE is taken over the rest.
-    parameters : dict, optional
-        Grey box: the assumed model's unknown parameters, ``{name: spec}``;
-        ``assumed_model`` is then called as ``f(x, t, u, p)`` (``u`` None
-        without inputs) with ``p`` a dict of their current values. Each spec
-        is the initial guess (a number, unbounded: ``{"k": 1.0, "c": 0.1}``),
-        a tuple ``(guess, lower, upper)`` with None for a missing bound
-        (``{"M": (90.0, 0, None)}``), or a :class:`Parameter`
-        (``Parameter(90.0, lower=1.0)``). Bounds are closed and every fit
-        keeps the parameters inside them. The parameters are fitted to the
-        measurements first (step 1), MME runs with the fitted values, and
-        they are refitted jointly with the correction; the report gives them
-        with confidence intervals apart from the missing effects. A
-        parameter that ends on a bound is reported ``at_bound``: its value
-        is a limit, not an estimate (no standard error; the others' are
-        computed with it held there), and the conclusion names it, as it
-        names a parameter that moved more than tenfold from its guess. A
-        library term that only re-estimates a parameter cannot enter.
-    min_effect : float, default 0.01
-        Practical significance: every identified term must remove at least
-        this share of the misfit of the model without it (on a long record
-        a negligible term is still statistically significant; on a short
-        one the significance test decides). 0 keeps every significant term.
-    offsets : bool, default False
-        Estimate a constant offset per measured channel (``y = g(x) + o``)
-        instead of letting the dynamics absorb it.
-    clipped : "auto", "keep" or (low, high), default "auto"
-        Readings on the end of a sensor's range (a level sensor that reads
-        at most 10 V reports 10 V whenever the level is higher). ``"auto"``
-        finds them (runs of readings exactly on a channel's largest or
-        smallest value, :func:`pysindy_mme.core.sensors.clipped_samples`)
-        on the fitting and the validation record and treats them as
-        censored: they are left out of every fit, of the noise estimate and
-        of every RMSE (a reading on the ceiling says only "at or above").
-        ``"keep"`` finds and names them but fits them as readings. A range
-        ``(low, high)`` (None for a missing limit; one pair per channel, or
-        one for all) censors the readings at or beyond it. A censored
-        stretch at the start or end of a record (nothing before or after it
-        to anchor the fit) is cut from it. The report names them
-        (``Discovery.clipped``), and says when a model's free run crosses a
-        level the data never exceed.
-    hidden_states : dict, optional
-        States nobody measured that the assumed model lacks, ``{name:
-        equation it enters}`` (a state name from ``feature_names`` or an
-        index): ``hidden_states={"z": "v"}`` adds a state ``z`` with
-        ``v' = f_v + z`` and ``z' = 0`` assumed, and the study estimates
-        ``z`` (MME) and searches its law in the library (give a library of
-        the variables the law may use, ``z`` among them: the feature names
-        are the states, then the hidden states, then the inputs). ``z`` is
-        in the units of ``v'`` (a force ``F`` on a mass ``m`` shows as
-        ``-F / m``), its initial value is fitted, MME estimates it at the
-        guessed grey-box parameters (step 1's fit, made with ``z`` frozen,
-        absorbs its effect into them), and the model error sits
-        on the hidden states only unless ``error_states`` names others
-        (indices of the original states keep their meaning). When the
-        assumed model's error has memory no function of the states can
-        give, the report says so and names this option
-        (:mod:`pysindy_mme.discovery.hidden`).
-    n_substeps : int, default 1
-        Fewest RK4 steps per sample interval in every fit and simulation
-        (the study raises it to what the model's fastest time scale needs);
-        raise it when the report says the result changes with the
-        integration step. With ``mme=``, set it there.
-    verbose : bool
-        Report each stage on standard error (stages are always logged to the
-        ``"pysindy_mme"`` logger).
+        The estimator's settings: ``MME(W=..., error_model=...,
+        input_hold=..., n_substeps=..., measurement_function=..., ...)``
+        (see :class:`MME`). The model and the measurements given here
+        (``assumed_model``, ``n_states``, ``measured``, ``noise_variance``,
+        ``error_states``, ``u``) fill in what it leaves unset; giving one in
+        both places is an error. Without it: ``W="auto"``, the white error
+        model, linear input hold, one RK4 step per sample interval (raised
+        to what the model's fastest time scale needs).
+    options : StudyOptions or dict, optional
+        Everything else the study may be told (names, grey-box parameters,
+        hidden states, significance, sensors...): see
+        :class:`~pysindy_mme.StudyOptions`.
 
     Returns
     -------
     Discovery
+
+    Notes
+    -----
+    Thirteen parameters: the six that name the model and the measurements
+    are the design's contract (``discover(y, t, assumed_model=f,
+    n_states=2, measured=[0], noise_variance=0.01, error_states=[1],
+    feature_library=...)``), and grouping any of them would make the common
+    call longer. Keywords of earlier versions (``alpha=``, ``W=``,
+    ``validation_window=``, ...) raise a ``TypeError`` saying where each
+    went.
     """
-    keywords = {k: v for k, v in locals().items() if k not in ("y", "t", "verbose")}
-    return run_study(check_study(y, t, **keywords), Progress(verbose))
+    refuse_moved(removed)
+    opts = as_options(options)
+    given = dict(
+        assumed_model=assumed_model,
+        n_states=n_states,
+        measured=measured,
+        noise_variance=noise_variance,
+        error_states=error_states,
+    )
+    mme, given = settings_into_estimator(mme, given)
+    study = check_study(
+        y,
+        t,
+        mme=mme,
+        feature_library=feature_library,
+        optimizer=optimizer,
+        feature_names=opts.feature_names,
+        u=u,
+        validation=validation,
+        alpha=opts.alpha,
+        refit=opts.refit,
+        assumed_equations=opts.assumed_equations,
+        input_hold="linear" if mme is None else mme.input_hold,
+        parameters=opts.parameters,
+        offsets=opts.offsets,
+        min_effect=opts.min_effect,
+        clipped=opts.clipped,
+        hidden_states=opts.hidden_states,
+        **given,
+    )
+    return run_study(study, Progress(opts.verbose))
 
 
 def run_study(study, progress: Progress) -> Discovery:

@@ -189,7 +189,7 @@ def columns(table: str) -> list:
     """The columns of :func:`records`' rows for ``table`` (also when empty)."""
     from dataclasses import fields
 
-    from .result import ParameterEstimate, TermEstimate
+    from .estimates import ParameterEstimate, TermEstimate
 
     if table == "terms":
         return [f.name for f in fields(TermEstimate)]

@@ -93,9 +93,11 @@ def plot_gain(res_or_gain, ax):
     ax.set_xlim(-0.6, len(rows) - 0.4)
     ax.set_ylabel("simulation RMSE")
     window = gain.validation_window
+    method = getattr(gain, "validation_method", None) or (
+        f"initial state from the first {window} samples, then a free run"
+    )
     ax.set_xlabel(
-        "in-sample: each model fitted to this record; validation: initial state "
-        f"from the first {window} samples, then a free run"
+        f"in-sample: each model fitted to this record; validation: {method}"
         if gain.validation_rmse_assumed is not None
         else "in-sample: each model fitted to this record (no validation record given)",
         fontsize=8,

@@ -32,12 +32,12 @@ def test_hidden_state_and_substeps_reach_discover(tmp_path, call):
         csv, model, tmp_path / "o", hidden_state="w:velocity", substeps="3"
     )
     kw = call(argv)
-    assert kw["hidden_states"] == {"w": "velocity"}
-    assert kw["n_substeps"] == 3
+    assert kw["options"].hidden_states == {"w": "velocity"}
+    assert kw["mme"].n_substeps == 3
     # --error-states velocity given: the hidden state is added by discover
     assert kw["error_states"] == [1]
     # the feature names are the user's states (discover inserts the hidden ones)
-    assert kw["feature_names"] == ["position", "velocity"]
+    assert kw["options"].feature_names == ["position", "velocity"]
 
 
 def test_without_error_states_the_model_error_sits_on_the_hidden_states(tmp_path, call):
@@ -45,7 +45,7 @@ def test_without_error_states_the_model_error_sits_on_the_hidden_states(tmp_path
     argv = base_args(csv, model, tmp_path / "o", error_states=None)
     argv += ["--hidden-state", "a:velocity", "--hidden-state", "b:position"]
     kw = call(argv)
-    assert kw["hidden_states"] == {"a": "velocity", "b": "position"}
+    assert kw["options"].hidden_states == {"a": "velocity", "b": "position"}
     assert "error_states" not in kw  # discover's default: the hidden states only
     # naming a hidden state in --error-states is allowed (it has one anyway)
     kw = call(
@@ -59,7 +59,7 @@ def test_without_error_states_the_model_error_sits_on_the_hidden_states(tmp_path
 def test_defaults_pass_neither(tmp_path, call):
     csv, model, _ = write_user_files(tmp_path)
     kw = call(base_args(csv, model, tmp_path / "o"))
-    assert "hidden_states" not in kw and "n_substeps" not in kw
+    assert kw["options"].hidden_states is None and kw["mme"].n_substeps == 1
 
 
 BAD = [

@@ -5,7 +5,6 @@ the arguments), so they check the wiring in milliseconds; the grey-box test
 runs the whole study.
 """
 
-import inspect
 import json
 
 import numpy as np
@@ -52,10 +51,10 @@ def test_row_ranges_and_validation_record(tmp_path, call):
     (y, t), kw = call(argv)
     np.testing.assert_allclose(t, np.arange(100, 500) / 40.0)  # times keep their rows
     np.testing.assert_allclose(y[:, 0], np.round(data.y[100:500, 0], 6))
-    y_v, t_v = kw["validation"]
+    y_v, t_v = kw["validation"].records
     np.testing.assert_allclose(t_v, np.arange(500, data.t.size) / 40.0)
     assert y_v.shape == (data.t.size - 500, 1)
-    assert kw["validation_window"] == 25
+    assert kw["validation"].window == 25
 
 
 def test_inputs_hold_and_names(tmp_path, call):
@@ -71,8 +70,8 @@ def test_inputs_hold_and_names(tmp_path, call):
         validation_rows="600:",
     )
     (y, _), kw = call(argv)
-    assert kw["u"].shape == (600, 1) and kw["input_hold"] == "zoh"
-    assert kw["feature_names"] == ["position", "velocity", "force"]
+    assert kw["u"].shape == (600, 1) and kw["mme"].input_hold == "zoh"
+    assert kw["options"].feature_names == ["position", "velocity", "force"]
     assert len(kw["validation"]) == 3 and kw["validation"][2].shape == (201, 1)
 
 
@@ -93,13 +92,13 @@ def test_defaults_reach_discover(tmp_path, call):
     _, kw = call(argv)
     assert kw["noise_variance"] == "auto"
     assert kw["measured"] == [0] and kw["error_states"] == [0]
-    # The command line's defaults are discover's own, not a second copy of them.
-    defaults = inspect.signature(pysindy_mme.discover).parameters
-    assert kw["alpha"] == defaults["alpha"].default
-    assert kw["error_model"] == defaults["error_model"].default == "white"
-    assert kw["input_hold"] == defaults["input_hold"].default
-    assert kw["verbose"] is False
-    assert "validation" not in kw and "parameters" not in kw
+    # The command line's defaults are the library's own, not a second copy.
+    options, estimator = kw["options"], kw["mme"]
+    assert options.alpha == pysindy_mme.StudyOptions().alpha
+    assert estimator.error_model == pysindy_mme.MME().error_model == "white"
+    assert estimator.input_hold == pysindy_mme.MME().input_hold
+    assert options.verbose is False
+    assert "validation" not in kw and options.parameters is None
     assert type(kw["feature_library"]).__name__ == "PolynomialLibrary"
     assert kw["feature_library"].degree == 3
 
@@ -124,9 +123,9 @@ def test_noise_variance_per_channel_and_other_options(tmp_path, call):
     )
     _, kw = call(argv)
     np.testing.assert_allclose(kw["noise_variance"], [0.01, 0.04])
-    assert kw["alpha"] == 0.05 and kw["error_model"] == "random_walk"
+    assert kw["options"].alpha == 0.05 and kw["mme"].error_model == "random_walk"
     assert type(kw["feature_library"]).__name__ == "PowerLibrary"
-    assert kw["offsets"] is True and kw["verbose"] is True
+    assert kw["options"].offsets is True and kw["options"].verbose is True
 
 
 def test_library_from_a_user_file(tmp_path, call):
@@ -200,3 +199,45 @@ def test_only_warnings_for_the_user_are_printed():
         warnings.warn("overflow encountered", RuntimeWarning, stacklevel=1)
         warnings.warn("plain", UserWarning, stacklevel=1)
     assert messages == ["line one line two", "plain"]
+
+
+def test_k_step_scores_the_validation_rows_by_predictions(tmp_path, call):
+    from pysindy_mme.protocols import KStepAhead
+
+    csv, model, data = write_user_files(tmp_path, time_column=False)
+    argv = base_args(
+        csv,
+        model,
+        tmp_path / "o",
+        time=None,
+        rate="40",
+        train_rows="100:500",
+        validation_rows="500:",
+        validation_window="25",
+        k_step="8",
+    )
+    _, kw = call(argv)
+    protocol = kw["validation"]
+    assert isinstance(protocol, KStepAhead)
+    assert (protocol.k, protocol.window) == (8, 25)
+    y_v, t_v = protocol.records
+    np.testing.assert_allclose(t_v, np.arange(500, data.t.size) / 40.0)
+    assert "validation_window" not in kw
+
+
+def test_k_step_without_a_record_holds_a_stretch_out(tmp_path, call):
+    from pysindy_mme.protocols import KStepAhead
+
+    csv, model, _ = write_user_files(tmp_path)
+    _, kw = call(base_args(csv, model, tmp_path / "o", k_step="5"))
+    protocol = kw["validation"]
+    assert isinstance(protocol, KStepAhead) and protocol.records is None
+    assert (protocol.k, protocol.window) == (5, 20)
+
+
+@pytest.mark.parametrize("value", ["0", "2.5", "ten"])
+def test_a_bad_k_step_is_named(tmp_path, value):
+    csv, model, _ = write_user_files(tmp_path)
+    result = run(base_args(csv, model, tmp_path / "o", k_step=value))
+    assert result.code == 2
+    assert "--k-step must be" in result.err and "--k-step 10" in result.err

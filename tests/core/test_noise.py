@@ -18,10 +18,10 @@ from pysindy_mme.core.noise import (
     NoiseDiagnostics,
     _spectra,
     describe_noise,
+    difference_noise_variance,
     estimate_noise_variance,
     quantisation_step,
 )
-from pysindy_mme.differentiation.noise import difference_noise_variance
 from pysindy_mme.exceptions import DiscoveryWarning
 
 N = 16384

@@ -22,7 +22,7 @@ from kalman_reference import kalman_rts
 from scipy.linalg import expm
 from scipy.optimize import minimize, minimize_scalar
 
-from pysindy_mme import MME, discover
+from pysindy_mme import MME, StudyOptions, discover
 from pysindy_mme.differentiation.error_models import GaussMarkov
 from pysindy_mme.systems import duffing, van_der_pol
 
@@ -238,8 +238,8 @@ def test_reachable_by_name_from_mme_discover_and_the_command_line(tmp_path):
         measured=[0],
         noise_variance=0.01,
         error_states=[1],
-        feature_names=list(system.feature_names),
-        error_model="ou",
+        options=StudyOptions(feature_names=list(system.feature_names)),
+        mme=MME(error_model="ou"),
     )
     assert isinstance(res.mme.error_model_, GaussMarkov)
     assert set(res.terms["x2"]) == {"x1^3"}

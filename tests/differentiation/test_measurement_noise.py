@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pysindy_mme import MME
-from pysindy_mme.mme import difference_noise_variance
+from pysindy_mme.differentiation import difference_noise_variance
 from pysindy_mme.systems import van_der_pol
 
 

@@ -21,7 +21,7 @@ from reliability_support import (
 from sklearn.exceptions import ConvergenceWarning
 
 from pysindy_mme import MME
-from pysindy_mme.smoother import DivergenceError
+from pysindy_mme.exceptions import DivergenceError
 from pysindy_mme.systems import lotka_volterra
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from pysindy_mme import MME
 from pysindy_mme.core.model import ModelFunction
-from pysindy_mme.smoother import MMESmoother, unobservable_states
+from pysindy_mme.solver import MMESmoother, unobservable_states
 from pysindy_mme.systems import van_der_pol
 
 

@@ -25,7 +25,7 @@ from derivative import Kalman
 from kalman_reference import kalman_rts
 
 from pysindy_mme import MME
-from pysindy_mme.smoother import MMESmoother, internal_unit
+from pysindy_mme.solver import MMESmoother, internal_unit
 from pysindy_mme.systems import duffing, van_der_pol
 
 

@@ -338,8 +338,8 @@ def test_simulate_never_hangs_on_a_stiff_model():
 def test_no_converged_flag_when_a_trial_blew_up(monkeypatch):
     """A fit whose line search met a non-finite trial is not called converged,
     even though the line search stepped back to a finite solution."""
-    from pysindy_mme.differentiation.transcription import MMESmoother
-    from pysindy_mme.discovery.output_error import OutputErrorModel
+    from pysindy_mme.solver.output_error import OutputErrorModel
+    from pysindy_mme.solver.transcription import MMESmoother
 
     t = np.linspace(0, 4, 161)
     rng = np.random.default_rng(0)

@@ -23,7 +23,7 @@ from paper_case import T, Y
 from paper_case import paper_discover as _discover
 from paper_case import three_states as _three_states
 
-from pysindy_mme import PowerLibrary
+from pysindy_mme import MME, PowerLibrary, StudyOptions
 
 ENTRY_POINT = "discover"
 
@@ -105,7 +105,7 @@ BAD_INPUTS = [
             assumed_model=_three_states,
             n_states=3,
             error_states=[2],
-            feature_names=["a", "b", "c"],
+            options=StudyOptions(feature_names=["a", "b", "c"]),
         ),
         ValueError,
         r"error_states \[2\] cannot be seen",
@@ -124,7 +124,7 @@ BAD_INPUTS = [
     ),
     Bad(
         "discover: unknown error model",
-        lambda tmp: _discover(error_model=None),
+        lambda tmp: _discover(mme=MME(error_model=None)),
         ValueError,
         r"error_model must be an ErrorModel object or a registered name "
         r"\('white'.*'random_walk'.*\); got None",
@@ -144,19 +144,19 @@ BAD_INPUTS = [
     # ---- the study's own options
     Bad(
         "discover: alpha outside (0, 1)",
-        lambda tmp: _discover(alpha=1.5),
+        lambda tmp: _discover(options=StudyOptions(alpha=1.5)),
         ValueError,
         r"alpha must lie strictly between 0 and 1",
     ),
     Bad(
         "discover: feature_names count",
-        lambda tmp: _discover(feature_names=["a"]),
+        lambda tmp: _discover(options=StudyOptions(feature_names=["a"])),
         ValueError,
         r"feature_names has 1 names but there are 2 states",
     ),
     Bad(
         "discover: feature_names repeat",
-        lambda tmp: _discover(feature_names=["a", "a"]),
+        lambda tmp: _discover(options=StudyOptions(feature_names=["a", "a"])),
         ValueError,
         r"feature_names repeats a name",
     ),
@@ -198,13 +198,13 @@ BAD_INPUTS = [
     ),
     Bad(
         "discover: assumed_equations count",
-        lambda tmp: _discover(assumed_equations=["x2"]),
+        lambda tmp: _discover(options=StudyOptions(assumed_equations=["x2"])),
         ValueError,
         r"assumed_equations has 1 entries, expected 2",
     ),
     Bad(
         "discover: refit not a bool",
-        lambda tmp: _discover(refit="no"),
+        lambda tmp: _discover(options=StudyOptions(refit="no")),
         TypeError,
         r"refit must be True or False",
     ),

@@ -11,7 +11,8 @@ import warnings
 import pysindy as ps
 import pytest
 
-from pysindy_mme import discover
+from pysindy_mme import StudyOptions, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import lorenz, rossler
 
 SEEDS = range(10)
@@ -27,8 +28,8 @@ def _study(system, data, **kwargs):
             n_states=system.n_states,
             measured=list(system.measured),
             feature_library=ps.PolynomialLibrary(degree=2),
-            feature_names=system.feature_names,
-            **kwargs,
+            **grouped_keywords(kwargs),
+            options=StudyOptions(feature_names=system.feature_names),
         )
 
 

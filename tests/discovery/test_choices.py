@@ -24,6 +24,7 @@ import pysindy as ps
 import pytest
 from bad_input_support import Bad, assert_raises_as_documented, params
 
+from pysindy_mme import MME, StudyOptions
 from pysindy_mme.core.model import simulate_model
 from pysindy_mme.discovery import choices
 from pysindy_mme.discovery.choices import HoldChoice, choose_input_hold
@@ -69,7 +70,7 @@ OPTIONS = dict(
     noise_variance=NOISE_SD**2,
     error_states=[1],
     feature_library=ps.PolynomialLibrary(degree=2),
-    feature_names=["x", "v", "u"],
+    options=StudyOptions(feature_names=["x", "v", "u"]),
 )
 
 
@@ -131,10 +132,10 @@ def test_a_diverging_study_loses_and_all_diverging_raises(monkeypatch):
     y, t, u = record(smooth)
     real = choices.discover
 
-    def fragile(*args, input_hold, **kwargs):
-        if input_hold == "cubic":
+    def fragile(*args, mme, **kwargs):
+        if mme.input_hold == "cubic":
             raise DivergenceError("the model blew up")
-        return real(*args, input_hold=input_hold, **kwargs)
+        return real(*args, mme=mme, **kwargs)
 
     monkeypatch.setattr(choices, "discover", fragile)
     choice = choose_input_hold(y, t, u, window=10, **OPTIONS)
@@ -162,7 +163,12 @@ def _call(**changes):
 
 
 BAD_INPUTS = [
-    Bad("hold given", _call(input_hold="cubic"), TypeError, "does not take input_hold"),
+    Bad(
+        "hold given",
+        _call(mme=MME(input_hold="cubic")),
+        TypeError,
+        "does not take input_hold",
+    ),
     Bad("validation given", _call(validation=(_Y, _T, _U)), TypeError, "validation"),
     Bad("unknown hold", _call(holds=("quadratic",)), ValueError, "holds must be"),
     Bad("no hold", _call(holds=()), ValueError, "holds must be"),

@@ -24,9 +24,10 @@ import pysindy as ps
 import pytest
 import report_audit
 
-from pysindy_mme import discover
+from pysindy_mme import MME, StudyOptions, discover
 from pysindy_mme.cli.arguments import build_request
 from pysindy_mme.cli.parser import build_parser
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.machines import cascaded_tanks, clipped_oscillator
 
 MACHINE = clipped_oscillator()
@@ -51,7 +52,7 @@ def study(rec=REC, **kwargs):
     options.update(kwargs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return discover(rec.y, rec.t, **options)
+        return discover(rec.y, rec.t, **grouped_keywords(options))
 
 
 def audited(res):
@@ -269,9 +270,9 @@ def test_the_command_line_passes_clipped(tmp_path):
     base += ["--measured", "x1", "--parameters", "k=0.8"]
     parser = build_parser()
     request = build_request(parser.parse_args(base + ["--clipped", "keep"]))
-    assert request.kwargs["clipped"] == "keep"
+    assert request.kwargs["options"].clipped == "keep"
     request = build_request(parser.parse_args(base))
-    assert "clipped" not in request.kwargs  # discover's own default, "auto"
+    assert request.kwargs["options"].clipped == "auto"  # the library's default
     from pysindy_mme.cli.loading import UsageError
 
     with pytest.raises(UsageError, match="--clipped must be auto or keep"):
@@ -292,15 +293,16 @@ def test_the_two_tanks_ceiling_and_floor():
             rec.t,
             u=rec.u,
             assumed_model=machine.assumed_model,
-            parameters=machine.parameters,
             n_states=2,
             measured=[1],
             noise_variance=0.02**2,
             error_states=[0, 1],
             feature_library=ps.PolynomialLibrary(degree=2),
-            feature_names=["h1", "h2", "u"],
             validation=(val.y, val.t, val.u),
-            input_hold="zoh",
+            options=StudyOptions(
+                parameters=machine.parameters, feature_names=["h1", "h2", "u"]
+            ),
+            mme=MME(input_hold="zoh"),
         )
     # the record ends on the ceiling: those last samples are cut, not fitted
     lead, trail = res.study.clipped_cut

@@ -20,10 +20,11 @@ import pysindy as ps
 import pytest
 from oscillator_case import oscillator, record, study
 
-from pysindy_mme import discover
+from pysindy_mme import StudyOptions, discover
 from pysindy_mme.discovery.conclusion import CONCLUSIONS
-from pysindy_mme.discovery.output_error import OutputErrorModel
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.machines import cascaded_tanks, damped_pendulum, positioning_axis
+from pysindy_mme.solver.output_error import OutputErrorModel
 from pysindy_mme.systems import van_der_pol
 
 PENDULUM = damped_pendulum()
@@ -50,7 +51,7 @@ def _pendulum(model=None, seed=0, noise="stated", step=None, **kwargs):
         feature_names=NAMES,
     )
     options.update(kwargs)
-    return _quiet(discover, y, rec.t, **options)
+    return _quiet(discover, y, rec.t, **grouped_keywords(options))
 
 
 def _with_gravity(x, t):
@@ -135,7 +136,7 @@ def pendulum_quantised_noise_free_auto():
         measured=[0],
         noise_variance="auto",
         feature_library=ps.PolynomialLibrary(degree=3),
-        feature_names=NAMES,
+        options=StudyOptions(feature_names=NAMES),
     )
 
 
@@ -161,8 +162,9 @@ def check_pendulum_quantised_noisy_auto(res):
 def pendulum_runaway_parameter():
     return _pendulum(
         model=_grey_pendulum,
-        parameters={"b": 0.01},  # truth 0.2: the fit moves it 20x
+        # truth 0.2: the fit moves it 20x
         feature_library=ps.PolynomialLibrary(degree=1),
+        options=StudyOptions(parameters={"b": 0.01}),
     )
 
 
@@ -177,7 +179,8 @@ def check_pendulum_runaway_parameter(res):
 def pendulum_parameter_at_bound():
     return _pendulum(
         model=_grey_pendulum,
-        parameters={"b": (0.05, 0.0, 0.1)},  # truth 0.2 is outside
+        # truth 0.2 is outside
+        options=StudyOptions(parameters={"b": (0.05, 0.0, 0.1)}),
     )
 
 
@@ -206,7 +209,9 @@ def _van_der_pol_study(data, **kwargs):
 
 
 def paper_van_der_pol():
-    return _van_der_pol_study(van_der_pol().measure(0), feature_names=["x1", "x2"])
+    return _van_der_pol_study(
+        van_der_pol().measure(0), options=StudyOptions(feature_names=["x1", "x2"])
+    )
 
 
 def check_paper_van_der_pol(res):
@@ -294,13 +299,15 @@ def hidden_scale():
         t,
         u=u,
         assumed_model=_linear_chain,
-        parameters={"a": 0.08, "b": 0.4, "c": 0.25, "d": 0.12},
         n_states=2,
         measured=[1],
         noise_variance=1e-4,
         error_states=[1],
         feature_library=ps.PolynomialLibrary(degree=2),
-        feature_names=["h1", "h2", "u"],
+        options=StudyOptions(
+            parameters={"a": 0.08, "b": 0.4, "c": 0.25, "d": 0.12},
+            feature_names=["h1", "h2", "u"],
+        ),
     )
 
 
@@ -320,10 +327,9 @@ def _machine_study(machine, rec, **kwargs):
         rec.t,
         u=rec.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=len(machine.state_names),
         measured=list(machine.measured),
-        **kwargs,
+        **grouped_keywords({"parameters": machine.parameters, **kwargs}),
     )
 
 
@@ -340,7 +346,7 @@ def axis_sign_of_everything():
         rec,
         noise_variance=(1e-5) ** 2,
         feature_library=lib,
-        feature_names=["q", "v", "u"],
+        options=StudyOptions(feature_names=["q", "v", "u"]),
     )
 
 
@@ -364,7 +370,7 @@ def two_tanks_linear():
         noise_variance=0.02**2,
         error_states=[0, 1],
         feature_library=ps.PolynomialLibrary(degree=2),
-        feature_names=["h1", "h2", "u"],
+        options=StudyOptions(feature_names=["h1", "h2", "u"]),
     )
 
 

@@ -12,7 +12,8 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import discover
+from pysindy_mme import StudyOptions, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import duffing
 
 NOISE = 1e-3  # sd 0.03 on an amplitude of 1.5
@@ -30,14 +31,15 @@ def _study(data, **kwargs):
             data.y,
             data.t,
             assumed_model=linear_oscillator,
-            parameters={"k": 0.7, "c": 0.13},
             n_states=2,
             measured=[0],
             noise_variance=NOISE,
             error_states=[1],
             feature_library=ps.PolynomialLibrary(degree=3),
-            feature_names=["x1", "x2"],
-            **kwargs,
+            **grouped_keywords(kwargs),
+            options=StudyOptions(
+                parameters={"k": 0.7, "c": 0.13}, feature_names=["x1", "x2"]
+            ),
         )
 
 
@@ -84,20 +86,20 @@ def test_bad_parameters_are_rejected_up_front():
             data.y,
             data.t,
             assumed_model=linear_oscillator,
-            parameters=[1.0],
             n_states=2,
             measured=[0],
             noise_variance=NOISE,
+            options=StudyOptions(parameters=[1.0]),
         )
     with pytest.raises(ValueError, match="parameters: k must be finite"):
         discover(
             data.y,
             data.t,
             assumed_model=linear_oscillator,
-            parameters={"k": np.nan, "c": 0.1},
             n_states=2,
             measured=[0],
             noise_variance=NOISE,
+            options=StudyOptions(parameters={"k": np.nan, "c": 0.1}),
         )
 
 
@@ -121,9 +123,10 @@ def test_grey_box_with_an_explicit_mme_configuration():
             data.y,
             data.t,
             mme=mme,
-            parameters={"k": 0.7, "c": 0.13},
             feature_library=ps.PolynomialLibrary(degree=3),
-            feature_names=["x1", "x2"],
+            options=StudyOptions(
+                parameters={"k": 0.7, "c": 0.13}, feature_names=["x1", "x2"]
+            ),
         )
     keywords = _study(data)
     assert res.substeps >= 3
@@ -142,4 +145,4 @@ def test_grey_box_mme_model_must_take_parameters():
     fitted = ps.SINDy().fit(np.column_stack([data.y[:, 0], data.y[:, 0]]), t=data.t)
     mme = MME(assumed_model=fitted, n_states=2, measured=[0], noise_variance=NOISE)
     with pytest.raises(TypeError, match="f\\(x, t, u, p\\)"):
-        discover(data.y, data.t, mme=mme, parameters={"k": 0.7})
+        discover(data.y, data.t, mme=mme, options=StudyOptions(parameters={"k": 0.7}))

@@ -23,6 +23,7 @@ import pysindy as ps
 import pytest
 
 from pysindy_mme import discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import hysteretic_oscillator
 
@@ -63,7 +64,7 @@ def _study(seed, variables, hidden=True):
         options["error_states"] = [1]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return discover(record.y, record.t, **options)
+        return discover(record.y, record.t, **grouped_keywords(options))
 
 
 def _law_found(res) -> tuple:

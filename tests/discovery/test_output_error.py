@@ -10,7 +10,7 @@ import pytest
 
 from pysindy_mme.core.features import SelectedFeatures
 from pysindy_mme.core.integrate import simulate
-from pysindy_mme.discovery.output_error import OutputErrorModel
+from pysindy_mme.solver.output_error import OutputErrorModel
 from pysindy_mme.systems import van_der_pol
 
 

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from exact_reference import exact_lstsq, exact_normal_inverse
 
-from pysindy_mme.discovery.output_error import OutputErrorModel
-from pysindy_mme.discovery.statistics import residual_inflation
+from pysindy_mme.solver.output_error import OutputErrorModel
+from pysindy_mme.solver.statistics import residual_inflation
 
 COEFS = np.array([1e-4, 1.0, 1e6])
 AMPLITUDES = np.array([1e4, 1.0, 1e-6])  # each term contributes O(1)

@@ -13,12 +13,13 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import Parameter, discover
+from pysindy_mme import Parameter, StudyOptions, discover
 from pysindy_mme.core.model import simulate_model
-from pysindy_mme.differentiation import transcription
-from pysindy_mme.differentiation.transcription import box_qp
 from pysindy_mme.discovery.inputs import check_study
-from pysindy_mme.discovery.output_error import OutputErrorModel
+from pysindy_mme.discovery.options import grouped_keywords
+from pysindy_mme.solver import transcription
+from pysindy_mme.solver.output_error import OutputErrorModel
+from pysindy_mme.solver.transcription import box_qp
 from pysindy_mme.systems import duffing
 
 NOISE = 1e-3
@@ -37,14 +38,13 @@ def _grey_box(data, parameters, **kwargs):
             data.y,
             data.t,
             assumed_model=linear_oscillator,
-            parameters=parameters,
             n_states=2,
             measured=[0],
             noise_variance=NOISE,
             error_states=[1],
             feature_library=ps.PolynomialLibrary(degree=3),
-            feature_names=["x1", "x2"],
-            **kwargs,
+            **grouped_keywords(kwargs),
+            options=StudyOptions(parameters=parameters, feature_names=["x1", "x2"]),
         )
 
 

@@ -27,7 +27,7 @@ import warnings
 import numpy as np
 import pytest
 
-from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme import MME, PhysicsLibrary, StudyOptions, discover
 from pysindy_mme.feature_library import Coulomb, Stribeck
 from pysindy_mme.machines import positioning_axis
 
@@ -49,15 +49,14 @@ def axis_study(seed, duration=25.0):
             train.t,
             u=train.u,
             assumed_model=AXIS.assumed_model,
-            parameters=AXIS.parameters,
             n_states=2,
             measured=[0],
             noise_variance=rec.quantisation_step**2 / 12.0,
             feature_library=library,
-            feature_names=NAMES,
             error_states=[1],
-            input_hold="zoh",
             validation=(test.y, test.t, test.u),
+            options=StudyOptions(parameters=AXIS.parameters, feature_names=NAMES),
+            mme=MME(input_hold="zoh"),
         )
 
 

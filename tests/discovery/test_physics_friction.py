@@ -52,7 +52,8 @@ import pysindy as ps
 import pytest
 from oscillator_case import oscillator, record, study
 
-from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme import PhysicsLibrary, StudyOptions, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library import Coulomb, ViscousSplit
 from pysindy_mme.machines import asymmetric_damper, positioning_axis
 
@@ -97,7 +98,7 @@ def damper_study(seed, grey_box=True):
             return DAMPER.assumed_model(x, t, u, p)
 
         options.update(assumed_model=assumed)
-    return _quiet(discover, rec.y, rec.t, **options)
+    return _quiet(discover, rec.y, rec.t, **grouped_keywords(options))
 
 
 def implied_damping(res, grey_box=True):
@@ -197,12 +198,13 @@ def axis_friction_study(seed):
         rec.t,
         u=rec.u,
         assumed_model=machine.assumed_model,
-        parameters=machine.parameters,
         n_states=2,
         measured=[0],
         noise_variance=(1e-5) ** 2,
         feature_library=lib,
-        feature_names=["q", "v", "u"],
+        options=StudyOptions(
+            parameters=machine.parameters, feature_names=["q", "v", "u"]
+        ),
     )
 
 

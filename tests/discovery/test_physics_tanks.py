@@ -59,7 +59,7 @@ import warnings
 import numpy as np
 import pytest
 
-from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme import MME, PhysicsLibrary, StudyOptions, discover
 from pysindy_mme.feature_library import Overflow, Torricelli
 from pysindy_mme.machines import cascaded_tanks
 
@@ -94,15 +94,16 @@ def tanks_study(seed):
             rec.t,
             u=rec.u,
             assumed_model=MACHINE.assumed_model,
-            parameters=MACHINE.parameters,
             n_states=2,
             measured=[1],
             noise_variance=sensor_variance(rec),
             error_states=[0, 1],
             feature_library=lib,
-            feature_names=["h1", "h2", "u"],
-            input_hold="zoh",
             validation=(test.y, test.t, test.u),
+            options=StudyOptions(
+                parameters=MACHINE.parameters, feature_names=["h1", "h2", "u"]
+            ),
+            mme=MME(input_hold="zoh"),
         )
     return res, test, time.perf_counter() - start
 

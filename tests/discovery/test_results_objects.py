@@ -24,7 +24,8 @@ import results_case
 
 from pysindy_mme import Discovery, ExtendedModel, NotSavedError
 from pysindy_mme.core.tables import sig
-from pysindy_mme.discovery.storage import FORMAT, VERSION, SavedDiscovery
+from pysindy_mme.discovery.result import SavedDiscovery
+from pysindy_mme.discovery.storage import FORMAT, VERSION
 from pysindy_mme.discovery.summary import records
 
 

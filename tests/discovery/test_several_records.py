@@ -12,6 +12,7 @@ import pysindy as ps
 import pytest
 
 from pysindy_mme import MME, Record, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import van_der_pol
 
 
@@ -35,7 +36,7 @@ TRUE_TERMS = {"x1", "x2", "x1^2 x2"}
 def study(y, t=None, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return discover(y, t, **{**OPTIONS, **kwargs})
+        return discover(y, t, **grouped_keywords({**OPTIONS, **kwargs}))
 
 
 def estimates(result) -> dict:
@@ -214,7 +215,7 @@ def test_bad_records_are_refused_up_front(case, no_long_computation):
     y, t = args.pop("y"), args.pop("t")
     start = time.perf_counter()
     with pytest.raises(kind) as info:
-        discover(y, t, **{**OPTIONS, **args})
+        discover(y, t, **grouped_keywords({**OPTIONS, **args}))
     assert message in str(info.value)
     assert time.perf_counter() - start < 5.0
 

@@ -11,7 +11,8 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import Discovery, PowerLibrary, discover
+from pysindy_mme import MME, Discovery, PowerLibrary, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import (
     duffing,
     forced_oscillator,
@@ -37,7 +38,7 @@ def run(system, seed, library=None, **kwargs):
         u=data.u,
     )
     options.update(kwargs)
-    return data, discover(data.y, data.t, **options)
+    return data, discover(data.y, data.t, **grouped_keywords(options))
 
 
 def _vdp_study(library_factory):
@@ -148,7 +149,7 @@ def test_random_walk_error_model_in_the_study():
     """
     system = duffing()
     for seed in (1, 2):
-        data, res = run(system, seed, error_model="random_walk")
+        data, res = run(system, seed, mme=MME(error_model="random_walk"))
         assert res.mme.error_model == "random_walk"
         _check_hidden_effect(system, res, data)
 

@@ -21,11 +21,11 @@ from reliability_support import (
     readonly,
 )
 
+import pysindy_mme.differentiation.mme as mme_module
 import pysindy_mme.discovery.inputs as discovery_inputs
-import pysindy_mme.mme as mme_module
 from pysindy_mme import discover
 from pysindy_mme.discovery import DiscoveryWarning
-from pysindy_mme.discovery.output_error import OutputErrorModel
+from pysindy_mme.solver.output_error import OutputErrorModel
 from pysindy_mme.systems import lotka_volterra
 
 # ------------------------------------------------------ determinism and units

@@ -19,7 +19,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares, minimize
 
-from pysindy_mme import PowerLibrary, discover
+from pysindy_mme import PowerLibrary, StudyOptions, discover
 from pysindy_mme.systems import (
     duffing,
     forced_oscillator,
@@ -124,9 +124,9 @@ def test_reported_validation_gain_equals_an_independent_free_run(
             noise_variance=system.noise_variance,
             error_states=list(system.error_states),
             feature_library=library(),
-            feature_names=system.feature_names,
             u=data.u,
             validation=(val.y, val.t) if val.u is None else (val.y, val.t, val.u),
+            options=StudyOptions(feature_names=system.feature_names),
         )
     measured = list(system.measured)
     guess = val.x[0] + 0.05 * np.abs(val.x[0]) + 0.05

@@ -9,9 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pysindy_mme.anova as old_anova
 import pysindy_mme.optimizers as optimizers
-import pysindy_mme.stepwise as old_stepwise
 from pysindy_mme.optimizers import FloatingFStepwise, StepwiseSummary
 
 PACKAGE = Path(optimizers.__file__).parent
@@ -58,13 +56,13 @@ def test_html_escapes_names():
     assert opt.anova_[0]._repr_html_().startswith("<table")
 
 
-def test_old_import_paths_give_the_same_objects():
-    assert old_stepwise.FloatingFStepwise is optimizers.FloatingFStepwise
-    assert old_stepwise.Step is optimizers.Step
-    assert old_stepwise.StepwiseCycleWarning is optimizers.StepwiseCycleWarning
-    assert old_stepwise.ExcludedFeaturesWarning is optimizers.ExcludedFeaturesWarning
-    for name in ("AnovaTable", "fit_anova", "f_critical", "f_pvalue", "lstsq_refined"):
-        assert getattr(old_anova, name) is getattr(optimizers, name)
+def test_old_import_paths_are_gone():
+    """0.x removed the re-export shims: one real path per name (issue 22)."""
+    import importlib
+
+    for old in ("anova", "stepwise", "mme", "smoother", "libraries", "extended"):
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(f"pysindy_mme.{old}")
 
 
 def _functions(tree):

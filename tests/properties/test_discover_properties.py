@@ -25,6 +25,7 @@ from pysindy_mme import (
     ExcludedFeaturesWarning,
     PowerLibrary,
     StepwiseCycleWarning,
+    StudyOptions,
     discover,
 )
 from pysindy_mme.discovery import DiscoveryWarning
@@ -78,7 +79,7 @@ def test_discover_sane_or_documented_error(problem, case_counter):
                 noise_variance=noise_variance,
                 error_states=[1],
                 feature_library=library,
-                feature_names=["x1", "x2"],
+                options=StudyOptions(feature_names=["x1", "x2"]),
             )
         except ValueError as exc:
             assert "samples are needed" in str(exc), exc  # record too short

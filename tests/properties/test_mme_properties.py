@@ -25,7 +25,7 @@ from reliability_support import readonly, warning_types
 from sklearn.exceptions import ConvergenceWarning
 
 from pysindy_mme import MME
-from pysindy_mme.smoother import DivergenceError
+from pysindy_mme.exceptions import DivergenceError
 from pysindy_mme.systems import duffing, lotka_volterra, van_der_pol
 
 SYSTEMS = {s.name: s for s in (van_der_pol(), duffing(), lotka_volterra())}

@@ -32,6 +32,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from pysindy_mme import MME, discover
+from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library.power import PowerLibrary
 from pysindy_mme.machines import hysteretic_oscillator
 from pysindy_mme.systems import duffing, lotka_volterra
@@ -72,7 +73,7 @@ def study(y, t, model, D, measured, noise_sd, **kw):
             assumed_model=model,
             measured=measured,
             noise_variance=(np.asarray(noise_sd, dtype=float) * Dm) ** 2,
-            **kw,
+            **grouped_keywords(kw),
         )
 
 

@@ -64,7 +64,7 @@ unit system; everything public is in the user's units.
 Output error is the same problem with the dynamics as hard constraints (no
 model error, ``q = 0``: ``S_k = 0`` in the KKT system) and global parameters
 ``theta`` (correction coefficients, physical parameters, measurement
-offsets) bordering the band (:mod:`~pysindy_mme.differentiation.kkt`): every
+offsets) bordering the band (:mod:`~pysindy_mme.solver.kkt`): every
 sample interval is a shooting segment, all of them integrated as one
 vectorised batch, and the continuity conditions close as Gauss-Newton
 converges (multiple shooting in its limit, Bock's method, the paper's ref.
@@ -80,7 +80,7 @@ import dataclasses
 import numpy as np
 
 from ..core.integrate import InputSignal, rk4_flow
-from ..core.model import rowwise_jacobian
+from ..core.jacobian import rowwise_jacobian
 from ..exceptions import DivergenceError
 from .gauss_newton import GaussNewton
 from .kkt import CHUNK, BandedKKT, equilibrated_inverse, solve_reduced

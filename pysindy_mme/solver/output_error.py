@@ -51,10 +51,10 @@ from scipy import stats
 
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel
-from ..differentiation.kkt import equilibrated_inverse, solve_reduced, undetermined
-from ..differentiation.transcription import MMESmoother
 from ..exceptions import DivergenceError
+from .kkt import equilibrated_inverse, solve_reduced, undetermined
 from .statistics import residual_inflation
+from .transcription import MMESmoother
 
 __all__ = ["OutputErrorFit", "OutputErrorModel"]
 

@@ -29,7 +29,7 @@ import re
 
 import numpy as np
 
-from ..core.features import _agrees, _parse, _power
+from .features import _agrees, _parse, _power
 
 __all__ = ["to_sympy", "to_python", "exportable_terms"]
 
@@ -313,24 +313,26 @@ def _python_factor(var_name, power, absolute) -> str:
 
 def _hidden(model):
     """``(hidden states or None, grey parameters or None)`` of the model's
-    assumed part (see :mod:`.hidden`, :class:`.inputs.AtParameters`)."""
-    from .hidden import _Augmented, _AugmentedGrey
-    from .inputs import AtParameters
+    assumed part.
 
+    This floor knows no study, so the study's wrappers of the user's model
+    say what they are by attributes: a model at fixed grey-box parameters
+    has ``parameter_values`` (a dict) and ``model`` (the user's
+    ``f(x, t, u, p)``); a model with hidden states appended has
+    ``hidden_states`` (``names``, ``enters``, ``n_visible``).
+    """
     assumed = model.assumed_model
-    parameters = None
-    if isinstance(assumed, AtParameters):
-        parameters = dict(assumed.values)
+    parameters = getattr(assumed, "parameter_values", None)
+    if parameters is not None:
+        parameters = dict(parameters)
         assumed = assumed.model
-    if isinstance(assumed, (_Augmented, _AugmentedGrey)):
-        return assumed.hidden, parameters
-    return None, parameters
+    return getattr(assumed, "hidden_states", None), parameters
 
 
 def to_python(model) -> str:
     """Source of a module simulating the model with numpy only (module
     docstring); ValueError naming the terms that are library code."""
-    from .. import __version__
+    from .._version import __version__
 
     exact = exportable_terms(model)
     names = model.library_feature_names

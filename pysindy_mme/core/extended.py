@@ -6,9 +6,9 @@ import re
 
 import numpy as np
 
-from ..core.features import SelectedFeatures
-from ..core.model import as_model_function, simulate_model
-from ..core.tables import sig
+from .features import SelectedFeatures
+from .model import as_model_function, simulate_model
+from .tables import sig
 
 __all__ = ["ExtendedModel"]
 
@@ -359,7 +359,7 @@ class ExtendedModel:
         power). Correction terms that are products of powers are exact
         (``-1.008*x1**3``); others are read from their names (``sign(v)``)
         or shown as an undefined ``phi_<library column>``
-        (:mod:`pysindy_mme.discovery.export`).
+        (:mod:`pysindy_mme.core.export`).
 
         Returns
         -------

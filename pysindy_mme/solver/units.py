@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.model import ModelFunction, rowwise_jacobian
+from ..core.jacobian import rowwise_jacobian
+from ..core.model import ModelFunction
 
 __all__ = ["Dynamics", "channel_units", "internal_unit", "state_units"]
 

@@ -1,0 +1,243 @@
+"""Free runs scored against a record: what every validation protocol returns.
+
+A :class:`FreeRun` is a model simulated from an initial state and scored
+against the measurements (RMSE per channel over the samples it is scored
+on). :func:`window_runs` is the benchmarks' protocol on one record: each
+model's initial state fitted to the record's leading window only (an
+output-error fit of the initial state and the offsets, no parameters), then
+the model runs free over the record.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.base import clone
+
+from ..core.integrate import InputSignal, simulate_guided
+from ..solver.output_error import OutputErrorModel
+
+__all__ = [
+    "FreeRun",
+    "free_run",
+    "measurement_function",
+    "observed_window",
+    "pooled_runs",
+    "rmse",
+    "window_runs",
+]
+
+
+def rmse(y, y_hat) -> np.ndarray:
+    """RMSE per channel over observed samples; inf if a prediction is not finite."""
+    y = np.asarray(y, dtype=float)
+    y_hat = np.asarray(y_hat, dtype=float)
+    observed = np.isfinite(y)
+    out = np.empty(y.shape[1])
+    for j in range(y.shape[1]):
+        obs = observed[:, j]
+        pred = y_hat[obs, j]
+        out[j] = (
+            np.inf
+            if not np.all(np.isfinite(pred))
+            else float(np.sqrt(np.mean((y[obs, j] - pred) ** 2)))
+        )
+    return out
+
+
+@dataclass
+class FreeRun:
+    """A free-run simulation of one model on a record.
+
+    Attributes
+    ----------
+    x0 : ndarray (n,)
+        Initial state (fitted to the record, or to its leading window).
+    x : ndarray (N, n)
+        The simulation (NaN after a divergence; for k-step-ahead predictions,
+        NaN where nothing was predicted).
+    rmse : ndarray (m,)
+        Over the samples scored; inf when the run diverged.
+    diverged_at : float or None
+        Time at which the run left the bound, if it did.
+    model : callable
+        The model that ran, ``(x, t, u) -> dx/dt`` (as printed).
+    window : int or None
+        Leading samples the initial state was estimated from (None for an
+        in-sample run); longer than asked when readings in it were clipped
+        or missing.
+    """
+
+    x0: np.ndarray
+    x: np.ndarray
+    rmse: np.ndarray
+    diverged_at: float | None = None
+    model: object = None
+    window: int | None = None
+    #: with several records: each record's own run (``rmse`` is pooled)
+    records: list | None = None
+    #: with several fitting records: each record's fitted initial state
+    x0s: list | None = None
+    #: k-step-ahead predictions: the sample each prediction starts from (its
+    #: initial state, in ``x0s``, fitted to the ``window`` samples before it)
+    starts: list | None = None
+    #: k-step-ahead predictions: samples predicted from each start (``k``)
+    horizon: int | None = None
+
+
+def free_run(model, x0, t, inputs: InputSignal, substeps, measure, y, window, guess):
+    """Simulate from ``x0`` over ``t``; RMSE of ``measure(x)`` after ``window``.
+
+    ``model(x (K, n), t (K,), u (K, m) or None) -> dx/dt``. The run is the
+    exact RK4 free run from ``x0``, computed for the whole record at once
+    from ``guess`` (a state estimate of the record: it only speeds Newton's
+    method up, the answer does not depend on it; see
+    :func:`~pysindy_mme.core.integrate.simulate_guided`). The bound is 1e6
+    times the larger of the data's and the initial state's magnitude.
+    """
+    scale = max(float(np.nanmax(np.abs(y))), float(np.max(np.abs(x0))), 1e-300)
+    sim = simulate_guided(model, x0, t, inputs, substeps, guess, bound=1e6 * scale)
+    x = sim.x[0]
+    at = int(sim.diverged_at[0])
+    err = rmse(y[window:], measure(x)[window:])
+    return FreeRun(
+        x0=x0,
+        x=x,
+        rmse=err,
+        diverged_at=None if at < 0 else float(t[at]),
+        model=model,
+    )
+
+
+def pooled_runs(per_record: list, ys: list) -> dict:
+    """One :class:`FreeRun` per model from its runs on several records.
+
+    ``x`` is the records' runs one after the other, ``x0`` the first
+    record's initial state, ``records`` the runs themselves, and ``rmse``
+    pooled over the records: the root of the mean squared error over every
+    sample each run scores (after its window), all records together. A run
+    that diverged on any record has no pooled RMSE (inf).
+    """
+    out = {}
+    for name in per_record[0]:
+        runs = [r[name] for r in per_record]
+        sq = np.zeros(ys[0].shape[1])
+        count = np.zeros(ys[0].shape[1])
+        for run, y in zip(runs, ys):
+            seen = _scored(run, y).sum(axis=0)
+            # each record's RMSE times its count is its sum of squares
+            sq += np.asarray(run.rmse, float) ** 2 * seen
+            count += seen
+        with np.errstate(all="ignore"):
+            pooled = np.sqrt(sq / np.maximum(count, 1))
+        diverged = [r.diverged_at for r in runs if r.diverged_at is not None]
+        out[name] = FreeRun(
+            x0=runs[0].x0,
+            x=np.vstack([r.x for r in runs]),
+            rmse=np.where(np.isfinite(pooled), pooled, np.inf),
+            diverged_at=diverged[0] if diverged else None,
+            model=runs[0].model,
+            window=runs[0].window,
+            records=runs,
+        )
+    return out
+
+
+def _scored(run: FreeRun, y) -> np.ndarray:
+    """Which readings of ``y`` the run's RMSE is over (boolean, like ``y``)."""
+    y = np.asarray(y, float)
+    seen = np.isfinite(y)
+    if run.starts is not None:  # k-step-ahead: the predicted samples only
+        return seen & np.isfinite(run.x[:, :1])
+    seen[: run.window or 0] = False
+    return seen
+
+
+def measurement_function(C):
+    """``x -> y`` of a measurement: a matrix ``C`` or a callable."""
+    if callable(C):
+        return lambda x: np.asarray(C(np.atleast_2d(x)), dtype=float)
+    return lambda x: np.asarray(x) @ np.asarray(C).T
+
+
+def observed_window(window, y) -> int:
+    """Leading samples holding ``window`` readings (rows with a finite
+    reading), at most all but one: a window of censored (clipped) or missing
+    readings is lengthened until the initial state has ``window`` to go by."""
+    seen = np.cumsum(np.any(np.isfinite(np.asarray(y, float)), axis=1))
+    reach = int(np.searchsorted(seen, window)) + 1  # rows up to the window-th
+    return int(min(max(window, reach), y.shape[0] - 1))
+
+
+def record_guess(study, record):
+    """A state estimate of ``record`` (MME with the study's settings): where
+    the window fits start and the guess Newton's method starts the free runs
+    from (the runs themselves depend on the window only)."""
+    y_v, t_v, u_v = record
+    estimate = clone(study.mme).set_params(u=u_v)
+    with warnings.catch_warnings():
+        # an internal start-up estimate: its notes are not about the user's study
+        warnings.simplefilter("ignore")
+        estimate.fit(y_v, t_v)
+    return np.asarray(estimate.smoothed_x_)
+
+
+def window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
+    """``(x0, offsets)`` of ``model_rhs`` fitted to the window ``y`` (an
+    output-error fit of the initial state and, with ``study.offsets``, the
+    measurement offsets; nothing else)."""
+
+    def base(x, t, u, p, model_rhs=model_rhs):
+        return model_rhs(x, t, u)
+
+    m_off = y.shape[1] if study.offsets else 0
+    fit = OutputErrorModel(
+        base,
+        study.n_states,
+        features,
+        y,
+        t,
+        inputs,
+        study.noise_cov,
+        study.measurement,
+        n_offsets=m_off,
+        n_substeps=substeps,
+    ).fit((), np.zeros(m_off), guess)
+    return fit.x[0], (fit.offsets if m_off else 0.0)
+
+
+def window_runs(study, models: dict, features, substeps, record, window) -> dict:
+    """Initial state from the leading ``window`` samples, then a free run,
+    per model; RMSE over the samples after the window.
+
+    ``study`` is read for ``mme``, ``inputs.hold``, ``measurement``,
+    ``noise_cov``, ``n_states`` and ``offsets``; ``record`` is ``(y, t, u)``.
+    """
+    y_v, t_v, u_v = record
+    window = observed_window(window, y_v)
+    inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
+    measure = measurement_function(study.measurement)
+    guess = record_guess(study, record)
+    runs = {}
+    for name, model_rhs in models.items():
+        x0, offsets = window_fit(
+            study,
+            model_rhs,
+            features,
+            substeps,
+            y_v[:window],
+            t_v[:window],
+            inputs_v.subset(0, window),
+            guess[:window],
+        )
+
+        def shifted(x, offsets=offsets):
+            return measure(x) + offsets
+
+        runs[name] = free_run(
+            model_rhs, x0, t_v, inputs_v, substeps, shifted, y_v, window, guess
+        )
+        runs[name].window = window
+    return runs
