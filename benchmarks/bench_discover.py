@@ -20,7 +20,7 @@ from collections import Counter
 import numpy as np
 import pysindy as ps
 
-from pysindy_mme import PowerLibrary, StudyOptions, discover
+from pysindy_mme import PowerLibrary, discover
 from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import (
     duffing,
@@ -59,8 +59,7 @@ def study(system, library_factory, seeds, assumed=None, **options):
                 error_states=error_states,
                 feature_library=library_factory(),
                 u=data.u,
-                **grouped_keywords(options),
-                options=StudyOptions(feature_names=system.feature_names),
+                **grouped_keywords({"feature_names": system.feature_names, **options}),
             )
         times.append(time.perf_counter() - start)
         conclusions[res.conclusion] += 1

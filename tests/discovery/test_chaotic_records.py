@@ -11,7 +11,7 @@ import warnings
 import pysindy as ps
 import pytest
 
-from pysindy_mme import StudyOptions, discover
+from pysindy_mme import discover
 from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import lorenz, rossler
 
@@ -28,8 +28,7 @@ def _study(system, data, **kwargs):
             n_states=system.n_states,
             measured=list(system.measured),
             feature_library=ps.PolynomialLibrary(degree=2),
-            **grouped_keywords(kwargs),
-            options=StudyOptions(feature_names=system.feature_names),
+            **grouped_keywords({"feature_names": system.feature_names, **kwargs}),
         )
 
 

@@ -36,9 +36,12 @@ def _study(data, **kwargs):
             noise_variance=NOISE,
             error_states=[1],
             feature_library=ps.PolynomialLibrary(degree=3),
-            **grouped_keywords(kwargs),
-            options=StudyOptions(
-                parameters={"k": 0.7, "c": 0.13}, feature_names=["x1", "x2"]
+            **grouped_keywords(
+                {
+                    "parameters": {"k": 0.7, "c": 0.13},
+                    "feature_names": ["x1", "x2"],
+                    **kwargs,
+                }
             ),
         )
 

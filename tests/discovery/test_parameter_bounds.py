@@ -13,7 +13,7 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import Parameter, StudyOptions, discover
+from pysindy_mme import Parameter, discover
 from pysindy_mme.core.model import simulate_model
 from pysindy_mme.discovery.inputs import check_study
 from pysindy_mme.discovery.options import grouped_keywords
@@ -43,8 +43,9 @@ def _grey_box(data, parameters, **kwargs):
             noise_variance=NOISE,
             error_states=[1],
             feature_library=ps.PolynomialLibrary(degree=3),
-            **grouped_keywords(kwargs),
-            options=StudyOptions(parameters=parameters, feature_names=["x1", "x2"]),
+            **grouped_keywords(
+                {"parameters": parameters, "feature_names": ["x1", "x2"], **kwargs}
+            ),
         )
 
 
