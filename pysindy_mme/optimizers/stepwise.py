@@ -207,10 +207,11 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         restart ``"effect"`` and ``"kept"``; None where it did not apply).
         ``restart``: they were jointly significant, so all were added (steps
         with ``joint=True``) and removed again one at a time by the rule,
-        which finds terms that matter only together. ``kept``: the restarted
-        model was relevantly better than the forward one (no more terms and a
-        smaller residual, or Cohen's f^2 per extra term ``effect`` at least
-        0.02); otherwise the selection went back to the forward model.
+        which finds terms that matter only together. ``kept``: the forward
+        model explained less than 80 % of the target's variance, or the
+        restarted model is relevantly better (no more terms and a smaller
+        residual, or Cohen's f^2 per extra term ``effect`` at least 0.15);
+        otherwise the selection went back to the forward model.
     converged_ : bool
         False if some target hit ``max_iter``.
     cycle_detected_ : bool

@@ -179,8 +179,9 @@ def _notes(opt, t) -> list:
         )
         if joint["restart"] and not joint.get("kept", True):
             outcome += (
-                f"; not relevant (f^2 per extra term {joint['effect']:.2g} < "
-                f"{JOINT_MIN_EFFECT:g}): back to the forward model"
+                f"; not relevant (forward R^2 >= 0.8 and f^2 per extra term "
+                f"{joint['effect']:.2g} < {JOINT_MIN_EFFECT:g}): back to the "
+                "forward model"
             )
         notes.append(
             f"  Joint test of the {joint['n']} candidates Phase I left out: "
