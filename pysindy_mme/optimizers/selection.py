@@ -112,7 +112,9 @@ class Step:
         The function's partial F-ratio that triggered the step (of entry for
         an addition, eq. 19; in the model for a removal, eq. 20).
     threshold : float
-        The threshold it was compared with.
+        The threshold it was compared with. (A Phase I removal whose
+        ``partial_f`` is above it was for relevance: the function's Cohen's
+        f^2 fell below the default rule's ``rules.MIN_EFFECT``.)
     n_terms : int
         Number of functions in the model after the step (constant excluded).
     joint : bool
