@@ -61,10 +61,12 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     autocorrelation above 0.9, as with MME's estimate of the model error),
     the selection is redone with the paper's rule (``F* = 10`` and its
     floating Phase II), which was designed for that case. (Terms that matter
-    only together, whose parts no forward step admits alone, are caught where
-    Phase I leaves most of the target unexplained (R^2 < 0.8) by a joint test
-    of the candidates left out: if they are jointly significant, all enter
-    and the rule removes them one at a time; ``joint_tests_``.)
+    only together, whose parts no forward step admits alone, are caught by a
+    joint test of the candidates Phase I left out: if they are jointly
+    significant, all enter and the rule removes them one at a time; the
+    result is kept only if it is relevantly better than the forward model,
+    since with many rows a derivative's systematic error is significant
+    too; ``joint_tests_``.)
 
     :meth:`paper` gives the paper's rule for every target.
 
@@ -201,10 +203,15 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         ``floating="auto"`` decides on).
     joint_tests_ : list of (dict or None)
         Per target, the joint test of the candidates Phase I left out under
-        the default rule (``{"n", "f", "p", "restart"}``; None where it did
-        not apply). ``restart``: they were jointly significant, so all were
-        added (steps with ``joint=True``) and removed again one at a time by
-        the rule, which finds terms that matter only together.
+        the default rule (``{"n", "f", "p", "restart"}``, and after a
+        restart ``"effect"`` and ``"kept"``; None where it did not apply).
+        ``restart``: they were jointly significant, so all were added (steps
+        with ``joint=True``) and removed again one at a time by the rule,
+        which finds terms that matter only together. ``kept``: the forward
+        model explained less than 80 % of the target's variance, or the
+        restarted model is relevantly better (no more terms and a smaller
+        residual, or Cohen's f^2 per extra term ``effect`` at least 0.15);
+        otherwise the selection went back to the forward model.
     converged_ : bool
         False if some target hit ``max_iter``.
     cycle_detected_ : bool

@@ -12,7 +12,7 @@ import numbers
 import numpy as np
 
 from .rules import PAPER_F
-from .selection import AUTO_LAG1
+from .selection import AUTO_LAG1, JOINT_MIN_EFFECT
 from .tables import anova_html, anova_text, steps_html, steps_text
 
 __all__ = ["StepwiseSummary", "build_summary", "rule_description"]
@@ -177,6 +177,12 @@ def _notes(opt, t) -> list:
             if joint["restart"]
             else "not jointly significant"
         )
+        if joint["restart"] and not joint.get("kept", True):
+            outcome += (
+                f"; not relevant (forward R^2 >= 0.8 and f^2 per extra term "
+                f"{joint['effect']:.2g} < {JOINT_MIN_EFFECT:g}): back to the "
+                "forward model"
+            )
         notes.append(
             f"  Joint test of the {joint['n']} candidates Phase I left out: "
             f"F = {joint['f']:.4g}, p = {joint['p']:.2g}: {outcome}."
