@@ -79,6 +79,11 @@ class ParameterEstimate:
         ``value`` is on a bound the data push it against: the data would
         take it further, so it is a limit, not an estimate (its standard
         error is NaN, the others' are computed with it held there).
+    gauge : bool
+        Held at the guess because it trades off exactly with other
+        quantities (a scale the data do not determine,
+        ``Discovery.trade_offs``): fixed, not estimated (no standard error;
+        the others are estimated relative to it).
     """
 
     name: str
@@ -91,6 +96,7 @@ class ParameterEstimate:
     lower: float = -np.inf
     upper: float = np.inf
     at_bound: bool = False
+    gauge: bool = False
 
     @property
     def change(self) -> float:
@@ -294,6 +300,7 @@ class Discovery:
         ci = fit.confidence_intervals()
         se = fit.std_errors
         bounds = self.study.parameter_bounds
+        gauge = self.study.parameter_gauge
         out = {}
         for k, name in enumerate(names):
             out[name] = ParameterEstimate(
@@ -306,7 +313,8 @@ class Discovery:
                 ci_high=float(ci[k, 1]),
                 lower=float(bounds[k, 0]) if len(bounds) else -np.inf,
                 upper=float(bounds[k, 1]) if len(bounds) else np.inf,
-                at_bound=bool(fit.at_bound[k]),
+                at_bound=bool(fit.at_bound[k]) and not gauge[k],
+                gauge=bool(gauge[k]),
             )
         return out
 
