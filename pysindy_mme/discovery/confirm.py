@@ -69,6 +69,10 @@ TRIAL_FIRST = 4
 TRIAL_TOL = 1e-6
 #: look-alike functions tried in place of each term
 N_LOOK_ALIKES = 2
+#: Gauss-Newton iterations of a polish (the chosen model's fit)
+POLISH_ITER = 50
+#: further polishes of a fit that has not joined when its budget ran out
+POLISH_ROUNDS = 2
 #: why a term whose polished fit does not join is not taken
 _NOT_JOINED = (
     "its fit does not follow the model (the trajectory does not join), so its "
@@ -197,7 +201,7 @@ class _Search:
         """
         theta = self.theta(start, coefs)
         if polish:
-            fit = self.engine.fit(slots, theta, start.x, max_iter=50, tol=1e-9)
+            fit = self.engine.fit(slots, theta, start.x, max_iter=POLISH_ITER, tol=1e-9)
         else:
             fit = self.engine.fit(
                 slots, theta, start.x, max_iter=TRIAL_FIRST, tol=TRIAL_TOL
@@ -300,7 +304,9 @@ class _Search:
 
     def accept(self, slots, fit, force=False) -> bool:
         """Make ``slots`` the current terms, their fit polished; False (and
-        the new terms rejected) when the polished fit does not join.
+        the new terms rejected) when the polished fit does not join (after
+        up to ``POLISH_ROUNDS`` more polishes while it was still closing its
+        defects when its iterations ran out).
 
         A trajectory that does not follow its model (defects left open: a
         coefficient walked to 1e70 on a column that is zero along the fit,
@@ -310,6 +316,11 @@ class _Search:
         (a term removed for weakness stays removed).
         """
         polished = self.refit(slots, fit.coefficients, fit, True)
+        for _ in range(POLISH_ROUNDS):
+            # still closing its defects when the budget ran out: carry on
+            if polished.joined or polished.n_iter < POLISH_ITER or not polished.ok:
+                break
+            polished = self.refit(slots, polished.coefficients, polished, True)
         if not (force or polished.joined or not self.fit.joined):
             new = [slot for slot in slots if slot not in self.slots]
             for slot in new:
