@@ -128,13 +128,59 @@ def chain_failures(res) -> dict:
     return out
 
 
-def test_gauge_on_an_untuned_hidden_scale_case():
-    res = chain_study(0)
+@pytest.fixture(scope="module")
+def seed0():
+    return chain_study(0)
+
+
+def test_gauge_on_an_untuned_hidden_scale_case(seed0):
+    res = seed0
     assert chain_failures(res) == {}, (res.terms, res.parameters, res.reasons)
     text = str(res)
     assert "Gauge:" in text and "is held at its guess" in text
     assert any("held at its guess" in r for r in res.reasons)
     assert not any(pe.at_bound for pe in res.parameters.values())
+    # a gauge is no doubt: the trade-off it fixes is not called undetermined
+    assert not any("not determined by the data (no standard" in w for w in res.warnings)
+
+
+def test_a_saved_study_keeps_its_gauge(seed0, tmp_path):
+    from pysindy_mme import Discovery
+
+    path = tmp_path / "chain.npz"
+    seed0.save(path)
+    again = Discovery.load(path)
+    assert [t.gauge for t in again.study.gauges] == [
+        t.gauge for t in seed0.study.gauges
+    ]
+    assert {n: pe.gauge for n, pe in again.parameters.items()} == {
+        n: pe.gauge for n, pe in seed0.parameters.items()
+    }
+    assert "Gauge:" in str(again)
+
+
+def test_no_gauge_without_a_trade_off():
+    """Both states measured: the scale is determined, nothing is held."""
+    y, t, u, x = record(0, n=300)
+    rng = np.random.default_rng(1)
+    both = x + NOISE_SD * rng.standard_normal(x.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = discover(
+            both,
+            t,
+            u=u,
+            assumed_model=_chain,
+            parameters=dict(GUESSES),
+            n_states=2,
+            noise_variance=NOISE_SD**2,
+            feature_library=ps.PolynomialLibrary(degree=3, include_bias=False),
+            feature_names=["x1", "x2", "u"],
+            input_hold="zoh",
+        )
+    assert res.study.gauges == []
+    assert not any(pe.gauge for pe in res.parameters.values())
+    assert "Gauge:" not in str(res)
 
 
 @pytest.mark.slow
