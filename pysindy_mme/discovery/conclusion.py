@@ -211,6 +211,10 @@ class Evidence:
         Why the noise level is not known, if it is not.
     overshoots : list of Overshoot
         Levels the data never pass that the model's free run crosses.
+    gauges : list of str
+        Exact trade-offs fixed by holding a parameter at its guess (a gauge):
+        named among the reasons, but no doubt (every other quantity is
+        determined relative to the gauge).
     """
 
     contradicted: bool
@@ -231,6 +235,7 @@ class Evidence:
     noise_doubt: str | None = None
     overshoots: list = field(default_factory=list)
     memory: list = field(default_factory=list)
+    gauges: list = field(default_factory=list)
 
 
 def combined(rmse, floor) -> float:
@@ -243,7 +248,10 @@ def combined(rmse, floor) -> float:
 def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
     found = _without_terms(ev) if not ev.terms else _with_terms(ev)
-    return _with_overshoots(_with_memory(found, ev.memory), ev.overshoots)
+    found = _with_overshoots(_with_memory(found, ev.memory), ev.overshoots)
+    if ev.gauges:
+        found = replace(found, reasons=tuple(found.reasons) + tuple(ev.gauges))
+    return found
 
 
 def _with_memory(found: Conclusion, missing) -> Conclusion:

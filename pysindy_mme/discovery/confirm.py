@@ -69,6 +69,15 @@ TRIAL_FIRST = 4
 TRIAL_TOL = 1e-6
 #: look-alike functions tried in place of each term
 N_LOOK_ALIKES = 2
+#: Gauss-Newton iterations of a polish (the chosen model's fit)
+POLISH_ITER = 50
+#: further polishes of a fit that has not joined when its budget ran out
+POLISH_ROUNDS = 2
+#: why a term whose polished fit does not join is not taken
+_NOT_JOINED = (
+    "its fit does not follow the model (the trajectory does not join), so its "
+    "cost is no model's cost"
+)
 
 
 @dataclass
@@ -192,7 +201,7 @@ class _Search:
         """
         theta = self.theta(start, coefs)
         if polish:
-            fit = self.engine.fit(slots, theta, start.x, max_iter=50, tol=1e-9)
+            fit = self.engine.fit(slots, theta, start.x, max_iter=POLISH_ITER, tol=1e-9)
         else:
             fit = self.engine.fit(
                 slots, theta, start.x, max_iter=TRIAL_FIRST, tol=TRIAL_TOL
@@ -293,11 +302,35 @@ class _Search:
                 break
         return slots, fit, removed
 
-    def accept(self, slots, fit):
-        self.slots, self.fit = (
-            list(slots),
-            self.refit(slots, fit.coefficients, fit, True),
-        )
+    def accept(self, slots, fit, force=False) -> bool:
+        """Make ``slots`` the current terms, their fit polished; False (and
+        the new terms rejected) when the polished fit does not join (after
+        up to ``POLISH_ROUNDS`` more polishes while it was still closing its
+        defects when its iterations ran out).
+
+        A trajectory that does not follow its model (defects left open: a
+        coefficient walked to 1e70 on a column that is zero along the fit,
+        the line search stuck) has a transcription cost that is no model's
+        cost, often far below any model's: judged by it, it would replace a
+        model that does follow its trajectory. ``force``: take it anyway
+        (a term removed for weakness stays removed).
+        """
+        polished = self.refit(slots, fit.coefficients, fit, True)
+        for _ in range(POLISH_ROUNDS):
+            # still closing its defects when the budget ran out: carry on
+            if polished.joined or polished.n_iter < POLISH_ITER or not polished.ok:
+                break
+            polished = self.refit(slots, polished.coefficients, polished, True)
+        if not (force or polished.joined or not self.fit.joined):
+            new = [slot for slot in slots if slot not in self.slots]
+            for slot in new:
+                self.reject(slot, _NOT_JOINED)
+            if new:
+                names = ", ".join(self.describe(slot) for slot in new)
+                self.note(f"refused {names}: {_NOT_JOINED}")
+            return False
+        self.slots, self.fit = list(slots), polished
+        return True
 
     # ---------------------------------------------------------------- start
     def start(self, proposals, values, x_start):
@@ -309,7 +342,7 @@ class _Search:
         if 0 < len(proposals) <= JOINT_START_MAX:
             joint = self.refit(proposals, values, start_fit, polish=True)
             p = partial_f_p_value(self.assumed, joint, n_added=len(proposals))
-            if joint.ok and p <= self.alpha_term:
+            if joint.ok and joint.joined and p <= self.alpha_term:
                 self.slots, self.fit = list(proposals), joint
                 self.note(f"joint fit of {len(proposals)} proposals (p = {p:.2g})")
                 return
@@ -339,8 +372,8 @@ class _Search:
             return
         p, gain, ok = self.improves(self.fit, trial)
         if ok:
-            self.accept(self.slots + [slot], trial)
-            self.note(f"kept {self.describe(slot)} (p = {p:.2g})")
+            if self.accept(self.slots + [slot], trial):
+                self.note(f"kept {self.describe(slot)} (p = {p:.2g})")
         else:
             why = _too_weak(p, gain, self.min_effect)
             self.reject(slot, why)
@@ -399,8 +432,12 @@ def _swap_round(search: _Search, checked) -> bool:
                 best = (slots, trial, alt)
         if best is not None:
             new_slots, trial, alt = best
+            before = list(search.slots)
+            search.tried.add(alt)
+            if not search.accept(new_slots, trial):
+                continue
             search.note(f"swapped {search.describe(slot)} for {search.describe(alt)}")
-            for gone in search.slots:
+            for gone in before:
                 if gone not in new_slots:
                     why = (
                         f"replaced by {search.describe(alt)}, which fits better"
@@ -408,8 +445,6 @@ def _swap_round(search: _Search, checked) -> bool:
                         else f"redundant once {search.describe(alt)} is in"
                     )
                     search.reject(gone, why)
-            search.accept(new_slots, trial)
-            search.tried.add(alt)
             changed = True
     return changed
 
@@ -435,6 +470,9 @@ def _merge_round(search: _Search, z) -> bool:
                     continue
                 trial_slots, trial, _ = search.backward(trial_slots, trial)
                 if better_bic(trial, fit):
+                    search.tried.add(cand)
+                    if not search.accept(trial_slots, trial):
+                        continue
                     pair = (
                         f"{search.describe(slots[i])} and {search.describe(slots[j])}"
                     )
@@ -445,8 +483,6 @@ def _merge_round(search: _Search, z) -> bool:
                             f"{pair} together replaced by "
                             f"{search.describe(cand)}, fewer terms, as good a fit",
                         )
-                    search.accept(trial_slots, trial)
-                    search.tried.add(cand)
                     return True
     return False
 
@@ -477,7 +513,8 @@ def _forward_step(search: _Search) -> bool:
         return False
     p, gain, ok = search.improves(search.fit, trial)
     if ok:
-        search.accept(search.slots + [slot], trial)
+        if not search.accept(search.slots + [slot], trial):
+            return False
         search.note(f"added {search.describe(slot)} from the library (p = {p:.2g})")
         return True
     search.reject(
@@ -527,11 +564,13 @@ def _group_step(search: _Search, proposals, values) -> bool:
         p, ok = float("nan"), better_bic(trial, search.fit)
     if not ok:
         return False
-    for slot in search.slots:
+    before = list(search.slots)
+    if not search.accept(kept, trial):
+        return False
+    for slot in before:
         if slot not in kept:
             search.reject(slot, "redundant once the group of proposals is in")
     search.rejected = [(s, why) for s, why in search.rejected if s not in kept]
-    search.accept(kept, trial)
     names = ", ".join(search.describe(slot) for slot in added)
     search.note(
         f"kept {names} together (they fail alone; p = {p:.2g} for the group)"
@@ -641,7 +680,7 @@ def _prune(search: _Search, alpha_term, min_effect) -> bool:
         search.note(f"removed {search.describe(slot)}: {why}")
     if removed:
         if slots:
-            search.accept(slots, fit)
+            search.accept(slots, fit, force=True)
         else:
             search.slots, search.fit = [], search.assumed
     return bool(removed)

@@ -46,7 +46,12 @@ def doubt_notes(fit, names) -> list:
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = se / np.abs(theta)
-    undetermined = ~np.isfinite(rel)
+    # a parameter held (on a bound, or at its guess as a gauge) is fixed, not
+    # undetermined: the conclusion names it apart
+    held = np.zeros(k, dtype=bool)
+    flags = np.asarray(getattr(fit, "held", held), dtype=bool)[:k]
+    held[: flags.size] = flags
+    undetermined = ~np.isfinite(rel) & ~held
     weak = np.isfinite(rel) & (rel > WEAK_RELATIVE_SE)
     pairs = correlated_pairs(cov, names, undetermined)
 

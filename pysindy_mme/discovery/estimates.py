@@ -81,6 +81,11 @@ class ParameterEstimate:
         ``value`` is on a bound the data push it against: the data would
         take it further, so it is a limit, not an estimate (its standard
         error is NaN, the others' are computed with it held there).
+    gauge : bool
+        Held at the guess because it trades off exactly with other
+        quantities (a scale the data do not determine,
+        ``Discovery.trade_offs``): fixed, not estimated (no standard error;
+        the others are estimated relative to it).
     """
 
     name: str
@@ -93,6 +98,7 @@ class ParameterEstimate:
     lower: float = -np.inf
     upper: float = np.inf
     at_bound: bool = False
+    gauge: bool = False
 
     @property
     def change(self) -> float:

@@ -24,14 +24,14 @@ that direction tell which states' scale is undetermined (a hidden state).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..core.integrate import simulate_guided
 from ..core.model import ParametricModel
 
-__all__ = ["TradeOff", "exact_trade_offs"]
+__all__ = ["TradeOff", "exact_trade_offs", "gauge_choice"]
 
 #: smallest singular value of the column-scaled output Jacobian, relative to
 #: the largest, below which a direction is undetermined: central differences
@@ -63,12 +63,17 @@ class TradeOff:
     determined : list of str
         Combinations that are determined (``"b*a2"``), where the exponents
         say so.
+    gauge : str
+        The grey-box parameter the study held at its guess to fix this
+        direction (:func:`gauge_choice`), or ``""``: then the direction is
+        left in the fit (and the conclusion names it as undetermined).
     """
 
     names: list
     exponents: list
     hidden_states: list
     determined: list
+    gauge: str = ""
 
     def __str__(self) -> str:
         if len(self.names) == 1:
@@ -82,6 +87,11 @@ class TradeOff:
             )
         if self.determined:
             text += f": only {_join(self.determined)} is determined, not each"
+        if self.gauge:
+            text += (
+                f"; {self.gauge} is held at its guess (a gauge: fixed, as the data "
+                "do not determine it; the others are estimated relative to it)"
+            )
         return text
 
 
@@ -99,6 +109,96 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
     measured_states : sequence of int, optional
         States seen directly (the others are reported as hidden).
     """
+    null = _null_space(engine, fit, names, state_names, measured_states)
+    if null is None:
+        return []
+    out = [TradeOff([null.labels[j]], [1.0], [], []) for j in null.dead]
+    for v in null.vectors:
+        out.append(_describe(v, null))
+    return out
+
+
+def gauge_choice(engine, fit, names, state_names, measured_states=None) -> list:
+    """Parameters to hold at their values so that no exact trade-off is left.
+
+    A scale the data cannot fix (an unmeasured state's unit: ``z = s h``
+    leaves the measurements as they are when an input gain and an output
+    rate change as ``b -> s b``, ``a -> a / s``) makes the fits walk along
+    the valley to wherever Gauss-Newton stops (``b = 1e-14``, ``a = 1e10``),
+    far from anything the user meant and often where the model is stiff.
+    Holding one quantity of each such direction at its value (a *gauge*,
+    as a unit is chosen) removes the direction without changing what the
+    model can fit: every other quantity is then determined relative to it.
+
+    The quantities held are the grey-box parameters of ``fit`` (the first
+    ``engine.n_physical`` entries of ``theta``), one per null direction of
+    the output's sensitivities (:func:`exact_trade_offs`): the parameter
+    with the largest share of the direction (column-scaled, so unit-free),
+    the first in the user's order among those within a factor two of it;
+    the direction is then eliminated from the others (Gaussian elimination
+    on the null vectors), so that ``k`` directions hold ``k`` distinct
+    parameters. Only directions at least two quantities take part in are
+    gauged (a parameter with no effect at all is reported, not held), and
+    only parameters away from zero (a scale acts on a nonzero value).
+
+    Returns a list of ``(index, TradeOff)``: ``index`` into the grey-box
+    parameters, and the direction it fixes.
+    """
+    null = _null_space(engine, fit, names, state_names, measured_states)
+    if null is None or not len(null.vectors):
+        return []
+    n, n_phys = engine.n_states, int(engine.n_physical)
+    positions = [i for i, j in enumerate(null.keep) if n <= j < n + n_phys]
+    if not positions:
+        return []
+    # the null vectors in the column-scaled basis: components are unit-free
+    V = np.array([v * null.norms[null.keep] for v in null.vectors], dtype=float)
+    originals = list(null.vectors)
+    chosen = []
+    remaining = list(range(V.shape[0]))
+    while remaining:
+        best = None
+        for r in remaining:
+            comp = np.abs(V[r])
+            size = comp.max()
+            if size == 0 or np.count_nonzero(comp >= INVOLVED * size) < 2:
+                continue
+            usable = [
+                i
+                for i in positions
+                if null.q0[null.keep[i]] != 0
+                and comp[i] >= 0.5 * comp[positions].max()
+                and comp[i] >= INVOLVED * size
+            ]
+            if usable and (best is None or comp[usable[0]] > best[2]):
+                best = (r, usable[0], comp[usable[0]])
+        if best is None:
+            break
+        r, i, _ = best
+        remaining.remove(r)
+        for o in remaining:  # the other directions leave this parameter alone
+            V[o] -= V[o, i] / V[r, i] * V[r]
+        j = int(null.keep[i]) - n
+        chosen.append((j, replace(_describe(originals[r], null), gauge=names[j])))
+    return sorted(chosen)
+
+
+@dataclass
+class _NullSpace:
+    labels: list
+    q0: np.ndarray
+    keep: np.ndarray
+    norms: np.ndarray
+    dead: list
+    vectors: list
+    state_columns: list
+    scale_x: np.ndarray
+    hidden: list
+    state_names: list
+
+
+def _null_space(engine, fit, names, state_names, measured_states=None):
+    """The output sensitivities' null directions at ``fit`` (None: none to say)."""
     n = engine.n_states
     K = min(engine.t.size, MAX_SAMPLES)
     starts = getattr(engine, "starts", ())
@@ -108,7 +208,7 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
     # with no fitted constants only the initial states could trade off, and a
     # state nothing measured depends on is refused before the study starts
     if fit.theta.size == 0 or K < 3 or not np.all(np.isfinite(fit.x[:K])):
-        return []
+        return None
     theta = np.asarray(fit.theta, dtype=float)
     n_dyn = theta.size - engine.n_offsets
     model = ParametricModel(
@@ -163,37 +263,48 @@ def exact_trade_offs(engine, fit, names, state_names, measured_states=None) -> l
         down[j] -= h
         xu, xd = states_at(up), states_at(down)
         if not (np.all(np.isfinite(xu)) and np.all(np.isfinite(xd))):
-            return []  # a free run left the finite range: nothing to say here
+            return None  # a free run left the finite range: nothing to say here
         state_columns.append((xu - xd) / (2 * h))
         dy = (measure(xu) - measure(xd)) / (2 * h)
         columns.append((dy @ whiten.T).ravel())
     J = np.column_stack(columns)
     J[:, ~np.isfinite(J).all(axis=0)] = 0.0
     norms = np.linalg.norm(J, axis=0)
-    out = []
-    for j in np.flatnonzero(norms == 0.0):
-        if j >= n:  # an initial state of nothing measured is caught elsewhere
-            out.append(TradeOff([labels[j]], [1.0], [], []))
+    # an initial state of nothing measured is caught elsewhere
+    dead = [int(j) for j in np.flatnonzero(norms == 0.0) if j >= n]
     keep = np.flatnonzero(norms > 0)
-    if keep.size < 2:
-        return out
-    Jn = J[:, keep] / norms[keep]
-    _, s, vt = np.linalg.svd(Jn, full_matrices=False)
     hidden = [
         i
         for i in range(n)
         if measured_states is not None and i not in set(measured_states)
     ]
-    for k in np.flatnonzero(s / s[0] < NULL_TOLERANCE):
-        v = vt[k] / norms[keep]  # a perturbation of the quantities
-        out.append(
-            _describe(v, keep, q0, labels, state_columns, scale_x, hidden, state_names)
-        )
-    return out
+    vectors = []
+    if keep.size >= 2:
+        Jn = J[:, keep] / norms[keep]
+        _, s, vt = np.linalg.svd(Jn, full_matrices=False)
+        # a perturbation of the quantities, per null direction
+        vectors = [
+            vt[k] / norms[keep] for k in np.flatnonzero(s / s[0] < NULL_TOLERANCE)
+        ]
+    return _NullSpace(
+        labels,
+        q0,
+        keep,
+        norms,
+        dead,
+        vectors,
+        state_columns,
+        scale_x,
+        hidden,
+        list(state_names),
+    )
 
 
-def _describe(v, keep, q0, labels, state_columns, scale_x, hidden, state_names):
+def _describe(v, null):
     """A :class:`TradeOff` from a null perturbation ``v`` of ``q0[keep]``."""
+    keep, q0, labels = null.keep, null.q0, null.labels
+    state_columns, scale_x, hidden = null.state_columns, null.scale_x, null.hidden
+    state_names = null.state_names
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(q0[keep] != 0, v / q0[keep], np.nan)
     size = np.where(np.isfinite(rel), np.abs(rel), 0.0)

@@ -201,6 +201,32 @@ class Study:
             return LeadingWindow(window=self.validation_window)
         return HeldOut(window=self.validation_window)
 
+    #: exact trade-offs among the grey-box parameters at the guesses, each
+    #: fixed by holding one parameter (``TradeOff.gauge``) at its guess in
+    #: every fit (:func:`~.steps.fix_gauges`); empty: none
+    gauges: list = field(default_factory=list)
+
+    @property
+    def parameter_gauge(self) -> np.ndarray:
+        """Which grey-box parameters are held at their guesses as gauges."""
+        held = {t.gauge for t in self.gauges}
+        return np.array([name in held for name in self.parameter_names], dtype=bool)
+
+    @property
+    def fit_bounds(self) -> np.ndarray:
+        """``parameter_bounds`` with each gauge held at its guess
+        (``[guess, guess]``): the bounds every output-error fit keeps."""
+        k = self.n_parameters
+        bounds = np.asarray(self.parameter_bounds, dtype=float)
+        if bounds.shape != (k, 2):
+            bounds = np.tile([-np.inf, np.inf], (k, 1))
+        bounds = bounds.copy()
+        gauge = self.parameter_gauge
+        if gauge.any():
+            guess = np.asarray(self.parameter_init, dtype=float)[gauge]
+            bounds[gauge] = np.column_stack([guess, guess])
+        return bounds
+
     @property
     def n_records(self) -> int:
         return 1 + len(self.starts)

@@ -7,6 +7,8 @@ consistency test, the correction test and the text share one verdict.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..core.tables import p_value, sig, signed, text_table
@@ -197,6 +199,12 @@ def _parameters(res) -> list:
         ]
         for name, pe in res.parameters.items()
     ]
+    gauges = [
+        f"Gauge: {pe.name} = {sig(pe.initial)} is held at its guess, not fitted "
+        "(fixed: the scale is not determined by the data). " + _gauge_reason(res, name)
+        for name, pe in res.parameters.items()
+        if pe.gauge
+    ]
     return [
         "Parameters of the assumed model, fitted to the measurements (not "
         "missing effects):",
@@ -211,7 +219,16 @@ def _parameters(res) -> list:
             ],
             rows,
         ),
-    ]
+    ] + gauges
+
+
+def _gauge_reason(res, name) -> str:
+    """Why ``name`` is a gauge: the trade-off it fixes, as found at the guesses."""
+    for trade in getattr(res.study, "gauges", ()):
+        if trade.gauge == name:
+            text = str(replace(trade, gauge=""))
+            return text[0].upper() + text[1:] + "."
+    return ""
 
 
 def _offsets(res) -> list:

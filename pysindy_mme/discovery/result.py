@@ -209,6 +209,7 @@ class Discovery:
         ci = fit.confidence_intervals()
         se = fit.std_errors
         bounds = self.study.parameter_bounds
+        gauge = self.study.parameter_gauge
         out = {}
         for k, name in enumerate(names):
             out[name] = ParameterEstimate(
@@ -221,7 +222,8 @@ class Discovery:
                 ci_high=float(ci[k, 1]),
                 lower=float(bounds[k, 0]) if len(bounds) else -np.inf,
                 upper=float(bounds[k, 1]) if len(bounds) else np.inf,
-                at_bound=bool(fit.at_bound[k]),
+                at_bound=bool(fit.at_bound[k]) and not gauge[k],
+                gauge=bool(gauge[k]),
             )
         return out
 

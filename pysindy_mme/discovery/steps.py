@@ -33,11 +33,13 @@ from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
 from .doubts import stop_reason
 from .gain import Gain
+from .identifiability import exact_trade_offs, gauge_choice
 
 __all__ = [
     "AssumedFit",
     "ErrorEstimate",
     "fit_assumed_model",
+    "fix_gauges",
     "baseline",
     "set_aside_parameter_duplicates",
     "estimate_model_error",
@@ -138,7 +140,7 @@ def output_error_engine(study, features, substeps) -> OutputErrorModel:
         n_physical=study.n_parameters,
         n_offsets=study.y.shape[1] if study.offsets else 0,
         n_substeps=substeps,
-        bounds=study.parameter_bounds,
+        bounds=study.fit_bounds,
         starts=study.starts,
     )
 
@@ -154,12 +156,15 @@ def fit_assumed_model(study) -> AssumedFit:
 
     Started from the measured states (the unmeasured ones at zero), with as
     many RK4 steps per interval as the model's time scales need there.
+    Grey-box parameters in an exact trade-off at the guesses are first
+    given a gauge (:func:`fix_gauges`).
     """
 
     def rows(x, stride):
         return study.model(x, study.t[::stride][: len(x)], _rows(study.u, stride, x))
 
     substeps = rk4_substeps(study, rows, study.x_init, study.t)
+    fix_gauges(study, substeps)
     engine = output_error_engine(study, None, substeps)
     theta = initial_theta(study)
     fit = engine.fit((), theta, study.x_init)
@@ -181,7 +186,68 @@ def fit_assumed_model(study) -> AssumedFit:
                 fit = retry
             if fit.converged:
                 break
+    if study.gauges and fit.ok:
+        fit = _release_needless_gauges(study, engine, fit, substeps)
     return _assumed_fit(study, fit, substeps)
+
+
+def _parameter_labels(study) -> list:
+    """A name per entry of the assumed model's ``theta``: parameters, offsets."""
+    names = list(study.parameter_names)
+    if study.offsets:
+        names += [f"offset of {name}" for name in study.channel_names]
+    return names
+
+
+def fix_gauges(study, substeps) -> None:
+    """Hold a grey-box parameter of each exact trade-off at its guess.
+
+    The trade-offs are found at the guesses (the guessed model's own run,
+    its initial state fitted with the parameters held:
+    :func:`~.identifiability.gauge_choice`), before any fit can walk along
+    them. A held parameter is a gauge, as a unit is: the model's family is
+    the same, every other quantity is estimated relative to it, and it is
+    not counted as a fitted quantity (the tests' degrees of freedom and the
+    covariances are those of the model with it fixed, as for a parameter
+    on a bound). Sets ``study.gauges``.
+    """
+    study.gauges = []
+    if not study.n_parameters:
+        return
+    engine = output_error_engine(study, None, substeps)
+    held = engine.fit_held((), initial_theta(study), study.x_init)
+    if not held.ok:
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        chosen = gauge_choice(
+            engine, held, _parameter_labels(study), study.state_names, study.measured
+        )
+    study.gauges = [trade for _, trade in chosen]
+
+
+def _release_needless_gauges(study, engine, fit, substeps):
+    """Step 1's fit with the gauges that still fix an exact trade-off there.
+
+    A trade-off found at the guesses holds wherever it is a symmetry of the
+    model (a hidden state's scale); one that was exact only at the guesses
+    (a parameter multiplied by a state that happened to be still there)
+    is not, and its parameter is released and the fit continued from where
+    it stopped.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        found = exact_trade_offs(
+            engine, fit, _parameter_labels(study), study.state_names, study.measured
+        )
+    still = {name for trade in found for name in trade.names}
+    kept = [trade for trade in study.gauges if trade.gauge in still]
+    if len(kept) == len(study.gauges):
+        return fit
+    study.gauges = kept
+    freer = output_error_engine(study, None, substeps)
+    refit = freer.fit((), fit.theta, fit.x)
+    return refit if refit.ok else fit
 
 
 def _rank(fit):

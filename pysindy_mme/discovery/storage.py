@@ -140,6 +140,7 @@ STUDY_FIELDS = (
     "validation_clipped_cut",
     "starts",
     "validation_records",
+    "gauges",
 )
 
 #: the :class:`~.output_error.OutputErrorFit` attributes saved

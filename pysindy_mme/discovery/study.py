@@ -7,6 +7,7 @@ records of the ones before, and assembles a :class:`~.result.Discovery`.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -218,8 +219,11 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     terms, estimates = _terms(study, proposals, confirmation)
     names = _quantity_names(study, proposals, extended_fit)
-    trade_offs = exact_trade_offs(
-        engine, extended_fit, names, study.state_names, study.measured
+    trade_offs = _with_gauges(
+        study,
+        exact_trade_offs(
+            engine, extended_fit, names, study.state_names, study.measured
+        ),
     )
     final = "extended" if confirmation.slots else "assumed"
     crossed = overshoots(study, fits[final], gain.in_sample_runs[final], final)
@@ -266,6 +270,22 @@ def run_study(study, progress: Progress) -> Discovery:
     )
 
 
+def _with_gauges(study, trade_offs) -> list:
+    """The final fit's trade-offs, each one a gauge fixes marked with it.
+
+    The check perturbs every quantity, the gauges too, so it finds the
+    directions they fix again (with the terms that share them: a square
+    root of a hidden level scales with it); those are named as fixed by the
+    gauge, not as undetermined.
+    """
+    held = [trade.gauge for trade in study.gauges]
+    out = []
+    for trade in trade_offs:
+        gauge = next((name for name in held if name in trade.names), "")
+        out.append(replace(trade, gauge=gauge) if gauge else trade)
+    return out
+
+
 def _quantity_names(study, proposals, fit) -> list:
     """A name per entry of ``fit.theta``: parameters, terms, offsets."""
     names = list(study.parameter_names)
@@ -298,7 +318,9 @@ def _evidence(
         out_extended=gain.validation_rmse_extended,
         out_source=gain.validation_source,
         out_converged=bool(gain.held_out_converged),
-        unidentified=[str(t) for t in trade_offs] + _undetermined(fit, names),
+        unidentified=[str(t) for t in trade_offs if not t.gauge]
+        + _undetermined(fit, names),
+        gauges=[str(t) for t in trade_offs if t.gauge],
         parameters=_parameter_doubts(study, fit),
         noise_doubt=noise,
         overshoots=list(crossed),
@@ -357,8 +379,11 @@ def _undetermined(fit, names) -> list:
 def _parameter_doubts(study, fit) -> list:
     """Grey-box parameters that ran away from the guess or sit on a bound."""
     out = []
+    gauge = study.parameter_gauge
     for k, name in enumerate(study.parameter_names):
         guess, value = float(study.parameter_init[k]), float(fit.physical[k])
+        if gauge[k]:
+            continue  # held at the guess on purpose (a gauge), said apart
         if fit.at_bound[k]:
             out.append(f"{name} = {sig(value)} sits on its bound")
             continue
