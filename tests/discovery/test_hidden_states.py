@@ -13,7 +13,7 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import MME, StudyOptions, discover
+from pysindy_mme import MME, discover
 from pysindy_mme.discovery.hidden import HiddenStates, add_hidden_states
 from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.feature_library.power import PowerLibrary
@@ -204,9 +204,7 @@ def test_a_hidden_state_that_is_not_there_is_not_given_a_law():
     no law for z in at least 9 of 10 seeds (alpha = 1e-3 per study)."""
     false_laws = 0
     for seed in range(10):
-        machine, res = _pair_study(
-            200 + seed, beta=0.0, options=StudyOptions(alpha=0.0)
-        )
+        machine, res = _pair_study(200 + seed, alpha=0.0, beta=0.0)
         false_laws += bool(res.terms.get("z"))
         assert res.conclusion in ("consistent", "not explained", "inconclusive")
     print(f"\nfalse laws for an absent hidden state: {false_laws}/10")
