@@ -119,24 +119,13 @@ class HeldOut(ValidationProtocol):
         n = study.t.size
         keep = slice(stop, n) if start == 0 else slice(0, start)
         window = min(self.window, max(2, (stop - start) // 5))
-        rest, models, converged = ctx.refit_without(keep, window)
-        u = study.u
-        record = (
-            study.y[start:stop],
-            study.t[start:stop],
-            None if u is None else u[start:stop],
-        )
-        runs = self.score(rest, models, ctx.features, ctx.substeps, record, window)
         where = "first" if start == 0 else "last"
         source = (
             f"a held-out stretch (t = {sig(study.t[start])} .. "
             f"{sig(study.t[stop - 1])}, the {where} {stop - start} samples; both "
             "models refitted without it)"
         )
-        window = getattr(runs["assumed"], "window", None) or window
-        return ValidationOutcome(
-            runs, source, window, self.describe_method(window), bool(converged)
-        )
+        return self._scored(ctx, keep, slice(start, stop), window, source)
 
     def _last_record(self, ctx: ValidationContext) -> ValidationOutcome | None:
         study = ctx.study
@@ -145,18 +134,28 @@ class HeldOut(ValidationProtocol):
         window = min(self.window, max(2, size // 5))
         if size - window < MIN_HELD_OUT:
             return None
-        keep = slice(0, last.start)
-        rest, models, converged = ctx.refit_without(
-            keep, window, starts=np.asarray(study.starts[:-1], dtype=int)
-        )
-        u = study.u
-        record = (study.y[last], study.t[last], None if u is None else u[last])
-        runs = self.score(rest, models, ctx.features, ctx.substeps, record, window)
         source = (
             f"the last record held out whole ({size} samples, t = "
             f"{sig(study.t[last.start])} .. {sig(study.t[last.stop - 1])}; both "
             "models refitted on the other records)"
         )
+        return self._scored(
+            ctx,
+            slice(0, last.start),
+            last,
+            window,
+            source,
+            starts=np.asarray(study.starts[:-1], dtype=int),
+        )
+
+    def _scored(self, ctx, keep, held, window, source, **rest) -> ValidationOutcome:
+        """Both models refitted on the samples ``keep``, then scored on the
+        samples ``held``; ``rest``: further fields of the reduced study."""
+        study = ctx.study
+        refitted, models, converged = ctx.refit_without(keep, window, **rest)
+        u = study.u
+        record = (study.y[held], study.t[held], None if u is None else u[held])
+        runs = self.score(refitted, models, ctx.features, ctx.substeps, record, window)
         window = getattr(runs["assumed"], "window", None) or window
         return ValidationOutcome(
             runs, source, window, self.describe_method(window), bool(converged)
