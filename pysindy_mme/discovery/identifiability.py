@@ -30,6 +30,7 @@ import numpy as np
 
 from ..core.integrate import simulate_guided
 from ..core.model import ParametricModel
+from ..protocols.runs import measurement_function
 
 __all__ = ["TradeOff", "exact_trade_offs", "gauge_choice"]
 
@@ -245,7 +246,7 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
     if np.all(np.isfinite(base)):
         guess = base
     whiten = _whitener(engine.R)
-    measure = _measure(engine.measurement)
+    measure = measurement_function(engine.measurement)
     columns, state_columns = [], []
     for j in range(q0.size):
         ref = abs(q0[j]) if q0[j] != 0 else (scale_x[j] if j < n else 1.0)
@@ -346,14 +347,6 @@ def _products(names, exponents) -> list:
 def _whitener(R):
     """``L^-1`` with ``R = L L^T``: whitened outputs have unit noise."""
     return np.linalg.inv(np.linalg.cholesky(np.asarray(R, dtype=float)))
-
-
-def _measure(C):
-    """``x (K, n) -> y (K, m)`` for a matrix or a measurement function."""
-    if callable(C):
-        return lambda x: np.asarray(C(np.atleast_2d(x)), dtype=float)
-    C = np.asarray(C, dtype=float)
-    return lambda x: x @ C.T
 
 
 def _join(items) -> str:

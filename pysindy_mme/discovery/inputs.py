@@ -25,6 +25,7 @@ from ..differentiation import MME
 from ..differentiation.error_models import resolve_error_model
 from ..protocols import HeldOut, LeadingWindow, ValidationProtocol
 from .hidden import HiddenStates, add_hidden_states
+from .options import settings_into_estimator
 from .parameters import parameter_spec
 from .placement import default_error_states
 
@@ -32,8 +33,6 @@ __all__ = [
     "Study",
     "Record",
     "check_study",
-    "settings_into_estimator",
-    "MME_KEYWORDS",
     "MIN_RECORD_SAMPLES",
 ]
 
@@ -55,20 +54,6 @@ class Record:
     y: object
     t: object
     u: object = None
-
-
-#: discover's keywords that configure the estimator (also settable via mme=),
-#: with their defaults
-MME_KEYWORDS = {
-    "assumed_model": None,
-    "n_states": None,
-    "measured": None,
-    "noise_variance": None,
-    "error_states": None,
-    "W": "auto",
-    "error_model": "white",
-    "n_substeps": 1,
-}
 
 
 @dataclass
@@ -302,68 +287,14 @@ def _optimizer(optimizer):
     return optimizer
 
 
-#: MME's defaults of the settings discover may fill in (unset: these values)
-_UNSET = {
-    "assumed_model": None,
-    "n_states": None,
-    "measured": None,
-    "noise_variance": "auto",
-    "error_states": None,
-}
-
-
-def settings_into_estimator(mme, given: dict):
-    """``(mme, given)`` with discover's model and measurement keywords moved
-    into the user's :class:`MME` where it leaves them unset.
-
-    ``mme=MME(error_model="ou", W=5.0)`` carries the estimator's settings;
-    ``assumed_model``, ``n_states``, ``measured``, ``noise_variance`` and
-    ``error_states`` given to discover fill it in. A setting given in both
-    places raises, naming it (the two could disagree silently otherwise).
-    """
-    if mme is None:
-        return None, given
-    if not isinstance(mme, MME):
-        raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
-    params = mme.get_params(deep=False)
-    fill, both = {}, []
-    for name, value in given.items():
-        if value is None:
-            continue
-        unset = _UNSET[name]
-        current = params[name]
-        if current is unset or (isinstance(unset, str) and current == unset):
-            fill[name] = value
-        else:
-            both.append(name)
-    if both:
-        raise ValueError(
-            f"give {', '.join(both)} either to MME (mme=...) or to discover, not both"
-        )
-    return clone(mme).set_params(**fill), {name: None for name in given}
-
-
 def _estimator(mme, given: dict, u, input_hold, parameters: dict):
-    """The user's MME, or one built from discover's keywords (not both).
+    """The user's MME (discover's keywords already moved into it by
+    :func:`~.options.settings_into_estimator`), or one built from them.
 
     With grey-box ``parameters`` the estimator gets the model at their
     initial values (step 2 moves them to the fitted ones).
     """
     if mme is not None:
-        if not isinstance(mme, MME):
-            raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
-        both = [
-            k
-            for k, v in given.items()
-            if not (
-                v is MME_KEYWORDS[k] or (isinstance(v, str) and v == MME_KEYWORDS[k])
-            )
-        ]
-        if both:
-            raise ValueError(
-                f"give {', '.join(both)} either to MME (mme=...) or to discover, "
-                "not both"
-            )
         est = clone(mme)
         if u is not None:
             est.set_params(u=u)
@@ -1000,6 +931,7 @@ def check_study(
 ) -> Study:
     """Check :func:`discover`'s arguments; see there for their meaning."""
     protocol, validation, validation_window = _protocol(validation, validation_window)
+    mme, mme_keywords = settings_into_estimator(mme, mme_keywords)
     several = _training_records(y, t, u)
     starts = np.zeros(0, dtype=int)
     if several is not None:

@@ -18,7 +18,14 @@ from sklearn.base import clone
 from ..differentiation import MME
 from ..protocols import HeldOut, LeadingWindow, ValidationProtocol
 
-__all__ = ["MOVED", "StudyOptions", "as_options", "grouped_keywords", "refuse_moved"]
+__all__ = [
+    "MOVED",
+    "StudyOptions",
+    "as_options",
+    "grouped_keywords",
+    "refuse_moved",
+    "settings_into_estimator",
+]
 
 
 @dataclass(frozen=True)
@@ -256,6 +263,30 @@ def grouped_keywords(flat: dict) -> dict:
             else HeldOut(window=window)
         )
     return out
+
+
+def settings_into_estimator(mme, given: dict):
+    """``(mme, given)`` with discover's model and measurement keywords moved
+    into the user's :class:`MME` where it leaves them at their defaults.
+
+    ``mme=MME(error_model="ou", W=5.0)`` carries the estimator's settings;
+    ``assumed_model``, ``n_states``, ``measured``, ``noise_variance`` and
+    ``error_states`` given to discover fill it in. A setting given in both
+    places raises, naming it (the two could disagree silently otherwise).
+    """
+    if mme is None:
+        return None, given
+    if not isinstance(mme, MME):
+        raise TypeError(f"mme must be an MME estimator, got {type(mme).__name__}")
+    default = MME().get_params()
+    current = mme.get_params(deep=False)
+    given = {name: value for name, value in given.items() if value is not None}
+    both = [name for name in given if _differs(current[name], default[name])]
+    if both:
+        raise ValueError(
+            f"give {', '.join(both)} either to MME (mme=...) or to discover, not both"
+        )
+    return clone(mme).set_params(**given), {}
 
 
 def _differs(a, b) -> bool:

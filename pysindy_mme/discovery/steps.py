@@ -732,7 +732,7 @@ def in_sample_run(study, fit, model, substeps) -> FreeRun:
     observed sample. The fit's trajectory is only the guess Newton's method
     starts from: the answer is the model's own simulation.
     """
-    measure = _measure(study)
+    measure = measurement_function(study.measurement)
     offsets = _offsets(study, fit)
 
     def shifted(x):
@@ -838,10 +838,6 @@ def _offsets(study, fit):
     return fit.offsets if study.offsets else np.zeros(study.y.shape[1])
 
 
-def _measure(study):
-    return measurement_function(study.measurement)
-
-
 #: a free run beyond the data's extreme reading by more than this many noise
 #: sd crosses a level the data never pass
 OVERSHOOT_SD = 3.0
@@ -862,7 +858,7 @@ def overshoots(study, fit, run, model_name) -> list:
     readings = study.readings if study.readings is not None else study.y
     readings = np.asarray(readings, dtype=float)
     with np.errstate(all="ignore"):
-        pred = _measure(study)(run.x) + _offsets(study, fit)
+        pred = measurement_function(study.measurement)(run.x) + _offsets(study, fit)
     sd = np.sqrt(np.diag(study.noise_cov))
     out = []
     for j, name in enumerate(study.channel_names):

@@ -26,7 +26,7 @@ from .conclusion import (
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
 from .identifiability import exact_trade_offs
-from .inputs import check_study, settings_into_estimator
+from .inputs import check_study
 from .memory import memory_evidence
 from .options import as_options, refuse_moved
 from .propose import propose_terms
@@ -152,7 +152,6 @@ def discover(
         noise_variance=noise_variance,
         error_states=error_states,
     )
-    mme, given = settings_into_estimator(mme, given)
     study = check_study(
         y,
         t,
