@@ -24,6 +24,7 @@ from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
 from ..differentiation.error_models import resolve_error_model
 from ..protocols import HeldOut, LeadingWindow, ValidationProtocol
+from ..protocols.base import check_window
 from .hidden import HiddenStates, add_hidden_states
 from .options import settings_into_estimator
 from .parameters import parameter_spec
@@ -756,13 +757,7 @@ def _check_options(alpha, min_effect, refit, input_hold, offsets, window):
         raise ValueError(
             f"input_hold must be 'linear', 'zoh' or 'cubic', got {input_hold!r}"
         )
-    if (
-        isinstance(window, bool)
-        or not isinstance(window, (int, np.integer))
-        or window < 2
-    ):
-        raise ValueError(f"validation_window must be an integer >= 2, got {window!r}")
-    return alpha, min_effect, int(window)
+    return alpha, min_effect, check_window(window, "validation_window")
 
 
 def _protocol(validation, window):

@@ -282,6 +282,7 @@ class Discovery:
             ``rmse`` per channel, ``diverged_at``).
         """
         from ..protocols import ValidationProtocol
+        from ..protocols.base import check_window
         from .inputs import check_record
 
         if protocol is None:
@@ -295,11 +296,7 @@ class Discovery:
                 f"LeadingWindow(), KStepAhead(k)), got {protocol!r}"
             )
         protocol._check()
-        window = default_window if window is None else window
-        if isinstance(window, bool) or not isinstance(window, (int, np.integer)):
-            raise ValueError(f"window must be an integer >= 2, got {window!r}")
-        if window < 2:
-            raise ValueError(f"window must be an integer >= 2, got {window!r}")
+        window = check_window(default_window if window is None else window)
         record = check_record(self.study, y, t, u, "y")
         models = {
             "assumed": self.study.model_at(self.assumed.fit.physical),

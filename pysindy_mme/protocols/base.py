@@ -29,7 +29,22 @@ from dataclasses import dataclass
 
 from .runs import pooled_runs
 
-__all__ = ["ValidationContext", "ValidationOutcome", "ValidationProtocol"]
+__all__ = [
+    "ValidationContext",
+    "ValidationOutcome",
+    "ValidationProtocol",
+    "check_window",
+]
+
+
+def check_window(window, name: str = "window") -> int:
+    """``window`` as an int: the leading samples an initial state is fitted
+    to (ValueError naming ``name`` unless an integer >= 2)."""
+    if isinstance(window, bool) or not isinstance(window, numbers.Integral):
+        raise ValueError(f"{name} must be an integer >= 2, got {window!r}")
+    if window < 2:
+        raise ValueError(f"{name} must be an integer >= 2, got {window!r}")
+    return int(window)
 
 
 @dataclass
@@ -105,9 +120,7 @@ class ValidationProtocol:
 
     # -- checks ------------------------------------------------------------
     def _check(self) -> None:
-        w = self.window
-        if isinstance(w, bool) or not isinstance(w, numbers.Integral) or int(w) < 2:
-            raise ValueError(f"window must be an integer >= 2, got {w!r}")
+        check_window(self.window)
 
     @property
     def records(self):
