@@ -23,6 +23,9 @@ from ..core.validation import check_positive_number, check_probability
 __all__ = ["InvalidParameterError", "check_data", "check_params"]
 
 AUTOCORRELATION = ("newey-west", None)
+# Defaults of FloatingFStepwise that _check_no_ignored compares against.
+DEFAULT_ALPHA = 0.01
+DEFAULT_FLOAT_RATIO = 10.0
 
 
 class InvalidParameterError(ValueError, TypeError):
@@ -133,7 +136,41 @@ def _check_params(opt) -> dict:
     if tolerance >= 1:
         raise ValueError(f"tolerance must be < 1, got {tolerance}")
     params["tolerance"] = tolerance
+    _check_no_ignored(opt, params)
     return params
+
+
+def _check_no_ignored(opt, params) -> None:
+    """A parameter that the chosen rule would not read is an error, not ignored.
+
+    The rule is one documented set of parameters (see FloatingFStepwise's
+    "Selection rule"): ``alpha`` belongs to the default rule, ``float_ratio``
+    to Phase II. Only values other than the default are refused, since the
+    default cannot be told apart from "not given".
+    """
+    classic = params["f_enter"] is not None or params["alpha_enter"] is not None
+    if classic and params["alpha"] != DEFAULT_ALPHA:
+        raise ValueError(
+            f"alpha={params['alpha']} is the default rule's family-wise level, "
+            "but f_enter or alpha_enter selects the classic rule, which has "
+            "none: give alpha, or f_enter / alpha_enter, not both"
+        )
+    if _is_bool(opt.floating) and not opt.floating:
+        if params["float_ratio"] != DEFAULT_FLOAT_RATIO:
+            raise ValueError(
+                f"float_ratio={params['float_ratio']} sets Phase II's threshold, "
+                "but floating=False never runs Phase II"
+            )
+    for name in ("normalize_columns", "copy_X", "unbias"):
+        if not _is_bool(getattr(opt, name)):
+            raise ValueError(
+                f"{name} must be True or False, got {getattr(opt, name)!r}"
+            )
+    if opt.initial_guess is not None:
+        raise ValueError(
+            "initial_guess is not supported: stepwise selection always starts "
+            "from the constant-only model (leave initial_guess=None)"
+        )
 
 
 def _is_auto(value) -> bool:

@@ -150,6 +150,11 @@ class FloatingFStepwiseCV(EstimatorInterface, BaseOptimizer):
             raise InvalidParameterError(
                 f"estimator must be a FloatingFStepwise, got {type(template).__name__}"
             )
+        if template.f_enter is not None or template.alpha_enter is not None:
+            raise InvalidParameterError(
+                "estimator uses the classic rule (f_enter or alpha_enter); the "
+                "alpha this cross-validates belongs to the default rule"
+            )
         return np.sort(alphas), int(gap), template
 
     def _reduce(self, x, y, **kwargs):

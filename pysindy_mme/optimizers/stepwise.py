@@ -32,7 +32,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
-from ._checks import check_data, check_params
+from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_params
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
 from .final_fit import final_fit
@@ -162,12 +162,17 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     max_report : int, default 10
         Number of strongest functions not in the model listed in ``anova_``
         and :meth:`summary`.
-    normalize_columns, copy_X, initial_guess, unbias
-        Accepted for compatibility with pysindy's ``BaseOptimizer`` and
-        ignored: selection by partial F-ratios is invariant to column scale,
-        the input is never modified, selection always starts from the
-        constant-only model (a non-None ``initial_guess`` raises a warning),
-        and coefficients are already ordinary least squares on the support.
+    normalize_columns, copy_X, unbias : bool
+        pysindy's ``BaseOptimizer`` parameters, honoured by construction, so
+        either value gives the same fit: partial F-ratios and least squares
+        are invariant to column scale (``normalize_columns``), the input is
+        never modified (``copy_X``), and the coefficients are always ordinary
+        least squares on the support, with no shrinkage to remove
+        (``unbias``). A value that is not a bool raises.
+    initial_guess : None
+        pysindy's ``BaseOptimizer`` parameter, kept so that pysindy's
+        wrappers (``EnsembleOptimizer``) can read it; anything but None raises
+        a ``ValueError``: selection always starts from the constant-only model.
 
     Attributes
     ----------
@@ -241,6 +246,22 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
 
     Notes
     -----
+    The selection rule is one documented set of parameters; the first that
+    applies chooses it, and a parameter the chosen rule would not read raises
+    a ``ValueError`` rather than being ignored:
+
+    ==============================  =========================================
+    rule                            parameters
+    ==============================  =========================================
+    default (family-wise)           ``alpha``, ``autocorrelation``,
+                                    ``time_ordered``
+    classic, fixed thresholds       ``f_enter``, ``f_remove`` (no ``alpha``)
+    classic, per-test levels        ``alpha_enter``, ``alpha_remove`` (no
+                                    ``alpha``)
+    Phase II (any rule)             ``floating``, ``float_ratio`` (no
+                                    ``float_ratio`` with ``floating=False``)
+    ==============================  =========================================
+
     Which rule to use. The default wins the drop-in benchmark
     (``benchmarks/bench_dropin.py``: nine systems, three noise levels, 20
     seeds, against pysindy's optimizers at their defaults and tuned by
@@ -287,8 +308,8 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         alpha_enter=None,
         alpha_remove=None,
         floating="auto",
-        float_ratio=10.0,
-        alpha=0.01,
+        float_ratio=DEFAULT_FLOAT_RATIO,
+        alpha=DEFAULT_ALPHA,
         autocorrelation="newey-west",
         time_ordered="auto",
         max_iter=1000,
@@ -381,13 +402,6 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
                 raise ValueError(
                     f"{label} has {len(names)} names but {what} {size} columns"
                 )
-        if self.initial_guess is not None:
-            warnings.warn(
-                "FloatingFStepwise ignores initial_guess: selection always "
-                "starts from the constant-only model",
-                UserWarning,
-                stacklevel=2,
-            )
         self.feature_names_ = None if feature_names is None else list(feature_names)
         self.target_names_ = None if target_names is None else list(target_names)
         self.n_features_in_ = n_features
@@ -575,25 +589,12 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     def summary(self, feature_names=None, target_names=None, target=None):
         """ANOVA tables (the paper's Table II) and step histories.
 
-        Parameters
-        ----------
-        feature_names : sequence of str, optional
-            Library column names, e.g. ``model.get_feature_names()``. Defaults
-            to the names given to :meth:`fit`, else ``f0, f1, ...``.
-        target_names : sequence of str, optional
-            Target names, e.g. ``model.feature_names`` (shown as ``x0'``...).
-            Defaults to the names given to :meth:`fit`, else ``target 0``...
-        target : int, optional
-            Only this target.
-
-        Returns
-        -------
-        StepwiseSummary
-            The text (a ``str``: ``print`` it, search it, compare it) with
-            :meth:`~StepwiseSummary.as_text`, :meth:`~StepwiseSummary.as_html`
-            and ``_repr_html_`` (notebooks show the tables), and the
-            per-target :class:`~pysindy_mme.optimizers.AnovaTable` objects in
-            ``tables``.
+        ``feature_names`` (e.g. ``model.get_feature_names()``) and
+        ``target_names`` (e.g. ``model.feature_names``) default to those
+        given to :meth:`fit`; ``target`` selects one target. Returns a
+        :class:`StepwiseSummary`: a ``str`` with ``as_text``, ``as_html``,
+        ``_repr_html_`` and the per-target ``AnovaTable`` objects in
+        ``tables``.
         """
         check_is_fitted(self, "coef_")
         return build_summary(self, feature_names, target_names, target)

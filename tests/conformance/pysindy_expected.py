@@ -126,14 +126,9 @@ EXPECTED_FAILURES: dict[str, str] = {
         "default optimizer in pysindy), which FloatingFStepwise does not have"
     ),
     # ------------------------------------- behaviour specific to another optimizer
-    _OPT + f"test_specific_bad_parameters[{_V}SR3-14]": (
-        "expects SR3's error for an initial_guess of the wrong shape; "
-        "FloatingFStepwise accepts initial_guess for compatibility and ignores it "
-        "(with a warning): selection always starts from the constant-only model"
-    ),
     _OPT + f"test_initial_guess_sr3[{_V}SR3-0]": (
         "expects SR3's iterations to start from initial_guess; FloatingFStepwise "
-        "ignores it (with a warning): selection always starts from the "
+        "refuses it (ValueError): selection always starts from the "
         "constant-only model"
     ),
     _OPT + f"test_fit_warn[{_V}STLSQ-0]": (

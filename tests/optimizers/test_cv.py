@@ -90,6 +90,11 @@ def test_inside_sindy_with_summary_and_clone():
             TypeError,
             "estimator must be a FloatingFStepwise",
         ),
+        (
+            dict(estimator=FloatingFStepwise.paper()),
+            ValueError,
+            "estimator uses the classic rule",
+        ),
     ],
 )
 def test_bad_parameters(params, error, match):

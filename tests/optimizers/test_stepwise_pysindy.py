@@ -238,10 +238,34 @@ def test_compatibility_parameters_change_nothing(kwargs):
     assert set(np.flatnonzero(base.coef_[0])) == {0, 2}
 
 
-def test_initial_guess_is_ignored_with_a_warning(ramp_1d):
+def test_initial_guess_is_refused_not_ignored(ramp_1d):
     x, x_dot = ramp_1d
-    with pytest.warns(UserWarning, match="ignores initial_guess"):
+    with pytest.raises(ValueError, match="initial_guess is not supported"):
         FloatingFStepwise(initial_guess=np.zeros((1, 1))).fit(x, x_dot)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"f_enter": 4.0, "alpha": 0.05}, "alpha=0.05 is the default rule"),
+        ({"alpha_enter": 0.05, "alpha": 0.001}, "alpha=0.001 is the default rule"),
+        ({"floating": False, "float_ratio": 5.0}, "floating=False never runs"),
+        ({"normalize_columns": "yes"}, "normalize_columns must be True or False"),
+        ({"unbias": 1}, "unbias must be True or False"),
+    ],
+)
+def test_a_parameter_the_rule_would_not_read_raises(ramp_1d, kwargs, match):
+    x, x_dot = ramp_1d
+    with pytest.raises(ValueError, match=match):
+        FloatingFStepwise(**kwargs).fit(x, x_dot)
+
+
+def test_the_rule_parameters_that_apply_are_accepted(ramp_1d):
+    x, x_dot = ramp_1d
+    # defaults of the other rule's parameters are "not given"
+    FloatingFStepwise(f_enter=4.0, floating=False).fit(x, x_dot)
+    FloatingFStepwise(alpha=0.05, floating=True, float_ratio=5.0).fit(x, x_dot)
+    FloatingFStepwise.paper().fit(x, x_dot)
 
 
 def test_zero_weights_drop_samples():
