@@ -12,6 +12,7 @@ import warnings
 
 import numpy as np
 
+from ..core.constraints import Boolean, Integer, Interval, Options, check_parameters
 from ..core.integrate import HOLDS
 from ..core.noise import estimate_noise_variance, noise_covariance
 from ..core.tables import sig
@@ -27,6 +28,20 @@ from .error_models import resolve_error_model
 __all__ = ["MMEChecks"]
 
 
+# What each of MME's scalar settings may be: one check, one message
+# (core.constraints). The model, measurements, noise, error states, error
+# model and W are checked against the data (below).
+PARAMETER_CONSTRAINTS = {
+    "n_states": [Integer(1)],
+    "target": [Options("error", "derivative")],
+    "input_hold": [Options(*HOLDS)],
+    "n_substeps": [Integer(1)],
+    "max_iter": [Integer(1)],
+    "tol": [Interval(0.0, None, closed="neither")],
+    "verbose": [Boolean()],
+}
+
+
 class MMEChecks:
     """The checks of :class:`~.mme.MME` (reads its parameters)."""
 
@@ -38,27 +53,8 @@ class MMEChecks:
                 "assumed_model is required: the model f(x, t) or f(x, t, u) "
                 "(MME(assumed_model=f, n_states=2, ...))"
             )
+        check_parameters(self, PARAMETER_CONSTRAINTS)
         n = self.n_states
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-            raise TypeError(f"n_states must be a positive integer, got {n!r}")
-        if n < 1:
-            raise ValueError(f"n_states must be a positive integer, got {n}")
-        for name in ("max_iter", "n_substeps"):
-            val = getattr(self, name)
-            if isinstance(val, bool) or not isinstance(val, (int, np.integer)):
-                raise TypeError(f"{name} must be a positive integer, got {val!r}")
-            if val < 1:
-                raise ValueError(f"{name} must be a positive integer, got {val}")
-        check_positive_number(self.tol, "tol")
-        if self.target not in ("error", "derivative"):
-            raise ValueError(
-                f"target must be 'error' or 'derivative', got {self.target!r}"
-            )
-        if self.input_hold not in HOLDS:
-            raise ValueError(
-                "input_hold must be 'linear', 'zoh' or 'cubic', got "
-                f"{self.input_hold!r}"
-            )
         return int(n)
 
     def _check_error_model(self):

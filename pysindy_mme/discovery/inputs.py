@@ -17,12 +17,14 @@ import numpy as np
 from sklearn.base import clone
 
 from ..core import validation as val
-from ..core.integrate import HOLDS, InputSignal
+from ..core.constraints import check_parameter
+from ..core.integrate import InputSignal
 from ..core.libraries import fresh_library
 from ..core.noise import describe_noise, estimate_noise_variance
 from ..core.sensors import Clipping, check_ranges, clipped_at, clipped_samples
 from ..differentiation import MME
 from ..differentiation.error_models import resolve_error_model
+from ..differentiation.mme_checks import PARAMETER_CONSTRAINTS as MME_CONSTRAINTS
 from ..protocols import HeldOut, LeadingWindow, ValidationProtocol
 from ..protocols.base import check_window
 from .hidden import HiddenStates, add_hidden_states
@@ -753,10 +755,7 @@ def _check_options(alpha, min_effect, refit, input_hold, offsets, window):
     for name, flag in (("refit", refit), ("offsets", offsets)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be True or False, got {flag!r}")
-    if input_hold not in HOLDS:
-        raise ValueError(
-            f"input_hold must be 'linear', 'zoh' or 'cubic', got {input_hold!r}"
-        )
+    check_parameter("input_hold", input_hold, MME_CONSTRAINTS["input_hold"])
     return alpha, min_effect, check_window(window, "validation_window")
 
 
@@ -870,11 +869,9 @@ def _place_model_error(est, y, t, u, n_states, state_names) -> str:
 
 def _check_estimator(est, y) -> int:
     """The estimator's settings that the study reads itself; ``n_states``."""
+    # MME's own check of n_states, so the message is the same from both doors
+    check_parameter("n_states", est.n_states, MME_CONSTRAINTS["n_states"])
     n_states = est.n_states
-    if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)):
-        raise TypeError(f"n_states must be a positive integer, got {n_states!r}")
-    if n_states < 1:
-        raise ValueError(f"n_states must be a positive integer, got {n_states}")
     if est.measured is not None:
         idx = val.check_indices(est.measured, n_states, "measured")
         if y.shape[1] != idx.size:

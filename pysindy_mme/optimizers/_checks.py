@@ -14,15 +14,12 @@ and sparse input are rejected (the library is read as a dense real array).
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
-from ..core.validation import check_positive_number, check_probability
+from ..core.constraints import Boolean, Integer, Interval, Options, check_parameters
 
 __all__ = ["InvalidParameterError", "check_data", "check_params"]
 
-AUTOCORRELATION = ("newey-west", None)
 # Defaults of FloatingFStepwise that _check_no_ignored compares against.
 DEFAULT_ALPHA = 0.01
 DEFAULT_FLOAT_RATIO = 10.0
@@ -41,13 +38,43 @@ def _is_bool(value) -> bool:
     return isinstance(value, (bool, np.bool_))
 
 
+_POSITIVE = Interval(0.0, None, closed="neither")
+_LEVEL = Interval(0.0, 1.0, closed="neither")
+
+# What each parameter of FloatingFStepwise may be: one check, one message
+# (core.constraints). initial_guess is not listed: its one check, with the
+# reason, is in _check_no_ignored.
+PARAMETER_CONSTRAINTS = {
+    "f_enter": [None, _POSITIVE],
+    "f_remove": [None, _POSITIVE],
+    "alpha_enter": [None, _LEVEL],
+    "alpha_remove": [None, _LEVEL],
+    "floating": [Boolean(), Options("auto")],
+    "float_ratio": [Interval(1.0, None, closed="left")],
+    "alpha": [_LEVEL],
+    "autocorrelation": [Options("newey-west"), None],
+    "time_ordered": [Boolean(), Options("auto")],
+    "max_iter": [Integer(1)],
+    "drop_insignificant_constant": [Boolean()],
+    "fit_intercept": [Boolean()],
+    "tolerance": [_LEVEL],
+    "max_report": [Integer(0)],
+    "normalize_columns": [Boolean()],
+    "copy_X": [Boolean()],
+    "unbias": [Boolean()],
+}
+
+
+def _float_or_none(value):
+    return None if value is None else float(value)
+
+
 def _check_thresholds(opt) -> dict:
-    """The classic thresholds (f_enter/f_remove, alpha_enter/alpha_remove)."""
-    f_enter = f_remove = alpha_enter = alpha_remove = None
-    if opt.f_enter is not None:
-        f_enter = check_positive_number(opt.f_enter, "f_enter")
-    if opt.f_remove is not None:
-        f_remove = check_positive_number(opt.f_remove, "f_remove")
+    """The rules between the classic thresholds (each alone is in the table)."""
+    f_enter, f_remove = _float_or_none(opt.f_enter), _float_or_none(opt.f_remove)
+    alpha_enter = _float_or_none(opt.alpha_enter)
+    alpha_remove = _float_or_none(opt.alpha_remove)
+    if f_remove is not None:
         if f_enter is None:
             raise ValueError(
                 "f_remove requires f_enter (fixed thresholds replace the default "
@@ -60,23 +87,20 @@ def _check_thresholds(opt) -> dict:
             )
     elif f_enter is not None:
         f_remove = f_enter
-    if opt.alpha_enter is not None:
+    if alpha_enter is not None:
         if f_enter is not None:
             raise ValueError(
                 "give f_enter or alpha_enter, not both (a fixed F threshold or a "
                 "per-test significance level)"
             )
-        alpha_enter = check_probability(opt.alpha_enter, "alpha_enter")
-        if opt.alpha_remove is None:
+        if alpha_remove is None:
             alpha_remove = max(alpha_enter, 0.10)
-        else:
-            alpha_remove = check_probability(opt.alpha_remove, "alpha_remove")
-            if alpha_remove < alpha_enter:
-                raise ValueError(
-                    f"alpha_remove ({alpha_remove}) must be >= alpha_enter "
-                    f"({alpha_enter}): a function could enter and leave forever"
-                )
-    elif opt.alpha_remove is not None:
+        elif alpha_remove < alpha_enter:
+            raise ValueError(
+                f"alpha_remove ({alpha_remove}) must be >= alpha_enter "
+                f"({alpha_enter}): a function could enter and leave forever"
+            )
+    elif alpha_remove is not None:
         raise ValueError(
             "alpha_remove requires alpha_enter (significance levels replace "
             "f_enter/f_remove only when alpha_enter is given)"
@@ -104,38 +128,11 @@ def check_params(opt) -> dict:
 
 
 def _check_params(opt) -> dict:
+    check_parameters(opt, PARAMETER_CONSTRAINTS)
     params = _check_thresholds(opt)
-    params["alpha"] = check_probability(opt.alpha, "alpha")
-    if opt.autocorrelation not in AUTOCORRELATION:
-        raise ValueError(
-            f"autocorrelation must be 'newey-west' or None, got {opt.autocorrelation!r}"
-        )
-    if not (_is_bool(opt.floating) or _is_auto(opt.floating)):
-        raise ValueError(
-            f"floating must be True or False (or 'auto'), got {opt.floating!r}"
-        )
-    if not (_is_bool(opt.time_ordered) or _is_auto(opt.time_ordered)):
-        raise ValueError(
-            f"time_ordered must be True or False (or 'auto'), got {opt.time_ordered!r}"
-        )
-    for name in ("drop_insignificant_constant", "fit_intercept"):
-        if not _is_bool(getattr(opt, name)):
-            raise ValueError(
-                f"{name} must be True or False, got {getattr(opt, name)!r}"
-            )
-    params["float_ratio"] = check_positive_number(
-        opt.float_ratio, "float_ratio", minimum=1.0, strict=False
-    )
-    for name, minimum in (("max_iter", 1), ("max_report", 0)):
-        value = getattr(opt, name)
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-            raise ValueError(f"{name} must be an integer, got {value!r}")
-        if value < minimum:
-            raise ValueError(f"{name} must be >= {minimum}, got {value}")
-    tolerance = check_positive_number(opt.tolerance, "tolerance")
-    if tolerance >= 1:
-        raise ValueError(f"tolerance must be < 1, got {tolerance}")
-    params["tolerance"] = tolerance
+    params["alpha"] = float(opt.alpha)
+    params["float_ratio"] = float(opt.float_ratio)
+    params["tolerance"] = float(opt.tolerance)
     _check_no_ignored(opt, params)
     return params
 
@@ -144,9 +141,9 @@ def _check_no_ignored(opt, params) -> None:
     """A parameter that the chosen rule would not read is an error, not ignored.
 
     The rule is one documented set of parameters (see FloatingFStepwise's
-    "Selection rule"): ``alpha`` belongs to the default rule, ``float_ratio``
-    to Phase II. Only values other than the default are refused, since the
-    default cannot be told apart from "not given".
+    Notes): ``alpha`` belongs to the default rule, ``float_ratio`` to Phase
+    II. Only values other than the default are refused, since the default
+    cannot be told apart from "not given".
     """
     classic = params["f_enter"] is not None or params["alpha_enter"] is not None
     if classic and params["alpha"] != DEFAULT_ALPHA:
@@ -161,20 +158,11 @@ def _check_no_ignored(opt, params) -> None:
                 f"float_ratio={params['float_ratio']} sets Phase II's threshold, "
                 "but floating=False never runs Phase II"
             )
-    for name in ("normalize_columns", "copy_X", "unbias"):
-        if not _is_bool(getattr(opt, name)):
-            raise ValueError(
-                f"{name} must be True or False, got {getattr(opt, name)!r}"
-            )
     if opt.initial_guess is not None:
         raise ValueError(
             "initial_guess is not supported: stepwise selection always starts "
             "from the constant-only model (leave initial_guess=None)"
         )
-
-
-def _is_auto(value) -> bool:
-    return isinstance(value, str) and value == "auto"
 
 
 def _dense_real(value, name: str) -> np.ndarray:

@@ -156,20 +156,20 @@ BAD_INPUTS = [
         "MME: n_states zero",
         lambda tmp: _mme_fit(n_states=0),
         ValueError,
-        r"n_states must be a positive integer",
+        r"n_states must be an integer >= 1",
     ),
     # a non-integer type is a TypeError, as in discover
     Bad(
         "MME: n_states a float",
         lambda tmp: _mme_fit(n_states=2.0),
         TypeError,
-        r"n_states must be a positive integer",
+        r"n_states must be an integer >= 1",
     ),
     Bad(
         "MME: n_states a bool",
         lambda tmp: _mme_fit(n_states=True),
         TypeError,
-        r"n_states must be a positive integer",
+        r"n_states must be an integer >= 1",
     ),
     # ---- measurements
     Bad(
@@ -303,13 +303,13 @@ BAD_INPUTS = [
         "MME: max_iter zero",
         lambda tmp: _mme_fit(max_iter=0),
         ValueError,
-        r"max_iter must be a positive integer",
+        r"max_iter must be an integer >= 1",
     ),
     Bad(
         "MME: tol zero",
         lambda tmp: _mme_fit(tol=0.0),
         ValueError,
-        r"tol must be finite and > 0",
+        r"tol must be a finite number > 0",
     ),
     Bad(
         "MME: unknown error model",

@@ -120,7 +120,7 @@ BAD_INPUTS = [
         "discover: n_states not an integer",
         lambda tmp: _discover(n_states=2.0),
         TypeError,
-        r"n_states must be a positive integer",
+        r"n_states must be an integer >= 1",
     ),
     Bad(
         "discover: unknown error model",

@@ -271,8 +271,16 @@ def test_summary_shows_the_robust_statistics():
 @pytest.mark.parametrize(
     "params, error, match",
     [
-        (dict(alpha=0.0), ValueError, "alpha must be finite and > 0"),
-        (dict(alpha=1.5), ValueError, "alpha must lie strictly between 0 and 1"),
+        (
+            dict(alpha=0.0),
+            ValueError,
+            "alpha must be a finite number strictly between 0 and 1",
+        ),
+        (
+            dict(alpha=1.5),
+            ValueError,
+            "alpha must be a finite number strictly between 0 and 1",
+        ),
         (dict(autocorrelation="hac"), ValueError, "autocorrelation must be"),
         (dict(floating="sometimes"), ValueError, "floating must be True or False"),
         (dict(floating="None"), ValueError, "floating must be True or False"),
