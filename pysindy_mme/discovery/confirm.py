@@ -41,7 +41,7 @@ whose model blows up or cannot be fitted is rejected with that reason.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -126,6 +126,7 @@ class _Search:
         self.log, self.rejected = [], []
         self.tried = set()
         self.mme = None  # (x, d, physical): MME's estimate, see mme_trial
+        self.steps_of = None  # fit -> RK4 steps its model needs, see accept
 
     # ------------------------------------------------------------ MME start
     def mme_fit(self) -> OutputErrorFit:
@@ -321,7 +322,13 @@ class _Search:
             if polished.joined or polished.n_iter < POLISH_ITER or not polished.ok:
                 break
             polished = self.refit(slots, polished.coefficients, polished, True)
-        if not (force or polished.joined or not self.fit.joined):
+        if not (
+            force
+            or polished.joined
+            or not self.fit.joined
+            or self.joins_when_finer(polished)
+            or self.improves_as_a_model(polished)
+        ):
             new = [slot for slot in slots if slot not in self.slots]
             for slot in new:
                 self.reject(slot, _NOT_JOINED)
@@ -331,6 +338,60 @@ class _Search:
             return False
         self.slots, self.fit = list(slots), polished
         return True
+
+    def joins_when_finer(self, fit) -> bool:
+        """Whether a fit that does not join at the search's RK4 steps joins
+        at the steps its own model needs (``steps_of``).
+
+        A model faster than the search's discretisation (a hysteretic law
+        whose decay rate grows with ``|v|``) cannot follow its trajectory at
+        too few steps: that is the step size, not a trajectory that is no
+        model's. The search keeps comparing fits at its own steps (every
+        F-test on one discretisation); the confirmed model is polished with
+        the steps it needs afterwards.
+        """
+        if self.steps_of is None or not fit.ok:
+            return False
+        needed = int(self.steps_of(fit))
+        if needed <= self.engine.n_substeps:
+            return False
+        finer = self.engine.with_substeps(needed)
+        check = finer.fit(fit.slots, fit.theta, fit.x, max_iter=POLISH_ITER, tol=1e-9)
+        if check.ok and check.joined:
+            self.note(
+                f"the fit with {', '.join(self.describe(s) for s in fit.slots)} "
+                f"joins at the {needed} RK4 steps per interval its terms need "
+                f"(not at {self.engine.n_substeps}): taken"
+            )
+            return True
+        return False
+
+    def improves_as_a_model(self, fit) -> bool:
+        """Whether the model of a fit that does not join, run as a model (its
+        parameters held, only its initial state fitted: a trajectory that
+        follows it), still improves significantly on the current fit.
+
+        Then the open defects were the line search's, not a sign that the
+        cost is no model's: the terms are taken (with the polished fit, whose
+        trajectory is within its defects of the model's). A pathological fit
+        (a coefficient walked to 1e70 on a column that is zero along the
+        fit) fails this: run as a model it blows up or gains nothing.
+        """
+        new = [s for s in fit.slots if s not in self.slots]
+        if not new:
+            return False
+        held = self.engine.fit_held(fit.slots, fit.theta, fit.x)
+        if not (held.ok and held.joined):
+            return False
+        held = replace(held, n_free=fit.n_free)  # the fit's own parameters
+        p, _, ok = self.improves(self.fit, held, n_added=len(new))
+        if ok:
+            self.note(
+                f"the fit with {', '.join(self.describe(s) for s in new)} does "
+                f"not join, but its model, run as a model, improves on the "
+                f"current one (p = {p:.2g}): taken"
+            )
+        return ok
 
     # ---------------------------------------------------------------- start
     def start(self, proposals, values, x_start):
@@ -601,6 +662,7 @@ def confirm_terms(
     progress=None,
     min_effect: float = 0.0,
     mme_start=None,
+    steps_of=None,
 ) -> Confirmation:
     """Select correction terms by output-error tests (see module docstring).
 
@@ -627,6 +689,9 @@ def confirm_terms(
         MME's states and model error and the parameters it ran with: trial
         fits that fail from the current fit are tried again from there
         (:meth:`_Search.mme_trial`), and the joint start begins there.
+    steps_of : callable ``fit -> int``, optional
+        RK4 steps per interval the model of a fit needs: a fit that does not
+        join is taken if it joins at those steps (:meth:`_Search.accept`).
     """
     # Every term was picked from the whole library: each one must pass at the
     # Bonferroni level, so that the chance of any false term stays ~alpha.
@@ -634,6 +699,7 @@ def confirm_terms(
     search = _Search(
         engine, assumed, alpha_term, describe, library_candidates, progress, min_effect
     )
+    search.steps_of = steps_of
     if mme_start is not None:
         x, d, physical = mme_start
         search.mme = (np.asarray(x, float), np.asarray(d, float), np.asarray(physical))

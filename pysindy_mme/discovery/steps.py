@@ -46,6 +46,7 @@ __all__ = [
     "confirm_on_measurements",
     "measure_gain",
     "output_error_engine",
+    "rk4_steps_of",
     "rk4_substeps",
     "step_size_check",
     "in_sample_run",
@@ -124,6 +125,28 @@ def rk4_substeps(study, rhs_rows, x, t) -> int:
     dt = float(np.max(steps))
     auto = int(min(50, max(1, np.ceil(dt * rho / 0.5))))
     return max(auto, int(study.mme.n_substeps))
+
+
+def rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
+    """RK4 steps per interval for the assumed model at ``physical`` plus the
+    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`)."""
+    u = study.u
+    model = study.model_at(physical)
+    columns = [c for _, c in slots]
+
+    def rhs_rows(x, stride):
+        ts = study.t[::stride][: x.shape[0]]
+        us = None if u is None else u[::stride][: x.shape[0]]
+        out = np.array(model(x, ts, us), dtype=float)
+        if slots:
+            z = x if us is None else np.hstack([x, us])
+            with np.errstate(all="ignore"):
+                values = proposals.evaluate(z, columns)
+            for k, (i, _) in enumerate(slots):
+                out[:, i] += coefs[k] * values[:, k]
+        return out
+
+    return rk4_substeps(study, rhs_rows, x, study.t)
 
 
 def output_error_engine(study, features, substeps) -> OutputErrorModel:
@@ -483,6 +506,9 @@ def confirm_on_measurements(
         progress=progress,
         min_effect=study.min_effect,
         mme_start=(estimate.x, estimate.d, estimate.physical),
+        steps_of=lambda fit: rk4_steps_of(
+            study, fit.physical, fit.slots, fit.coefficients, proposals, fit.x
+        ),
     )
     confirmation.rejected[:0] = list(proposals.rejected)
     drop_smoothing_artefacts(engine, confirmation, proposals.library, describe)

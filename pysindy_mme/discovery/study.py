@@ -40,7 +40,7 @@ from .steps import (
     measure_gain,
     output_error_engine,
     overshoots,
-    rk4_substeps,
+    rk4_steps_of,
     set_aside_parameter_duplicates,
     smoothing_check,
     step_size_check,
@@ -406,31 +406,9 @@ def _substeps(study, assumed, proposals, x_hat) -> int:
     coef = proposals.coefficients
     rows, cols = np.nonzero(coef)
     slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
-    return _rk4_steps_of(
+    return rk4_steps_of(
         study, assumed.fit.physical, slots, coef[rows, cols], proposals, x_hat
     )
-
-
-def _rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
-    """RK4 steps per interval for the assumed model at ``physical`` plus the
-    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`)."""
-    u = study.u
-    model = study.model_at(physical)
-    columns = [c for _, c in slots]
-
-    def rhs_rows(x, stride):
-        ts = study.t[::stride][: x.shape[0]]
-        us = None if u is None else u[::stride][: x.shape[0]]
-        out = np.array(model(x, ts, us), dtype=float)
-        if slots:
-            z = x if us is None else np.hstack([x, us])
-            with np.errstate(all="ignore"):
-                values = proposals.evaluate(z, columns)
-            for k, (i, _) in enumerate(slots):
-                out[:, i] += coefs[k] * values[:, k]
-        return out
-
-    return rk4_substeps(study, rhs_rows, x, study.t)
 
 
 def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, substeps):
@@ -446,7 +424,7 @@ def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, sub
     fit = confirmation.fit
     if fit is None or not fit.ok:
         return engine, assumed, substeps
-    needed = _rk4_steps_of(
+    needed = rk4_steps_of(
         study, fit.physical, fit.slots, fit.coefficients, proposals, fit.x
     )
     if needed <= substeps:

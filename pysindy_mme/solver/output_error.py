@@ -473,6 +473,7 @@ class OutputErrorModel:
             n_iter=fit.n_iter,
             n_physical=self.n_physical,
             n_offsets=self.n_offsets,
+            joined=fit.joined,
         )
 
     def _failed(self, slots, theta0, x_start, message):
