@@ -1,0 +1,184 @@
+"""discover_many (issue 20): many studies on a Dask cluster or local processes
+give the results of as many serial discover calls, to the last bit.
+
+Fifty short records of the paper's Van der Pol case (``tests/many_case.py``)
+run once serially through :func:`discover`, then through
+:func:`discover_many` on a ``LocalCluster`` of two worker processes on the
+loopback interface, and on two local processes (joblib); every result must
+be identical. Failures of single studies, warnings and the progress line
+are checked on a few records. Bad input is in ``test_bad_input_many.py``.
+"""
+
+from __future__ import annotations
+
+import pickle
+import warnings
+
+import pytest
+from many_case import (
+    BrokenOptimizer,
+    records,
+    same_result,
+    shared_keywords,
+)
+
+from pysindy_mme import (
+    Discovery,
+    StudiesFailedError,
+    StudyFailure,
+    discover,
+    discover_many,
+)
+
+N_RECORDS = 50
+
+
+def _serial(entries, **overrides):
+    """discover on each record in turn, with the warnings each one gave."""
+    out, caught_all = [], []
+    for y, t in entries:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            out.append(discover(y, t, **shared_keywords(**overrides)))
+        caught_all.append([str(w.message) for w in caught])
+    return out, caught_all
+
+
+@pytest.fixture(scope="module")
+def fifty():
+    entries = records(N_RECORDS)
+    return entries, _serial(entries)[0]
+
+
+@pytest.fixture(scope="module")
+def cluster_client():
+    pytest.importorskip(
+        "distributed",
+        reason="the cluster tests need dask's distributed: "
+        "pip install pysindy-mme[distributed]",
+    )
+    from distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
+    fifty, cluster_client, capsys
+):
+    entries, serial = fifty
+    many = discover_many(entries, client=cluster_client, **shared_keywords())
+    assert len(many) == N_RECORDS
+    for one, other in zip(serial, many):
+        assert isinstance(other, Discovery)
+        assert same_result(one, other)
+    assert f"discover_many: {N_RECORDS}/{N_RECORDS} studies done" in (
+        capsys.readouterr().err
+    )
+    # the results came back from the workers, and pickle again
+    assert str(pickle.loads(pickle.dumps(many[0]))) == str(serial[0])
+
+
+def test_fifty_records_on_local_processes_match_fifty_serial_calls(fifty):
+    entries, serial = fifty
+    many = discover_many(entries, n_jobs=2, progress=False, **shared_keywords())
+    for one, other in zip(serial, many):
+        assert same_result(one, other)
+
+
+def test_in_this_process_with_the_warnings_of_serial_calls():
+    """n_jobs=1: the same results, each study's warnings re-issued with its
+    record, in the order of the records."""
+    entries = records(3)
+    serial, serial_warnings = _serial(entries)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        many = discover_many(entries, n_jobs=1, progress=False, **shared_keywords())
+    for one, other in zip(serial, many):
+        assert same_result(one, other)
+    expected = [
+        f"records[{i}]: {message}"
+        for i, messages in enumerate(serial_warnings)
+        for message in messages
+    ]
+    assert [str(w.message) for w in caught] == expected
+
+
+def test_every_kind_of_entry_gives_the_same_study():
+    """A Record, a tuple, an array with a shared t, a dict, and a list of
+    records (one study of several): each is what discover would run."""
+    from pysindy_mme import Record
+
+    (y, t), (y2, t2) = records(2)
+    many = discover_many(
+        [Record(y, t), {"y": y, "t": t}, [(y, t), (y2, t2)]],
+        n_jobs=1,
+        progress=False,
+        **shared_keywords(),
+    )
+    alone = discover(y, t, **shared_keywords())
+    same_result(alone, many[0])
+    same_result(alone, many[1])
+    same_result(discover([(y, t), (y2, t2)], **shared_keywords()), many[2])
+    shared_t = discover_many([y], t=t, n_jobs=1, progress=False, **shared_keywords())
+    same_result(alone, shared_t[0])
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+def test_a_failed_study_is_named_and_the_others_are_kept(n_jobs):
+    entries = records(3)
+    broken = {"y": entries[1][0], "t": entries[1][1], "optimizer": BrokenOptimizer()}
+    with pytest.raises(StudiesFailedError, match=r"1 of 3 studies failed") as info:
+        discover_many(
+            [entries[0], broken, entries[2]],
+            n_jobs=n_jobs,
+            progress=False,
+            **shared_keywords(),
+        )
+    assert "records[1]: RuntimeError: this optimizer breaks on purpose" in str(
+        info.value
+    )
+    results = info.value.results
+    assert isinstance(results[0], Discovery) and isinstance(results[2], Discovery)
+    (failure,) = info.value.failures
+    assert results[1] is failure and failure.index == 1
+    assert isinstance(failure.exception, RuntimeError)
+    assert "fit" in failure.traceback
+    # on_error="return": the same list, returned
+    kept = discover_many(
+        [entries[0], broken],
+        n_jobs=n_jobs,
+        progress=False,
+        on_error="return",
+        **shared_keywords(),
+    )
+    assert isinstance(kept[0], Discovery) and isinstance(kept[1], StudyFailure)
+
+
+def test_progress_line_counts_the_studies(capsys):
+    discover_many(records(2), n_jobs=1, **shared_keywords())
+    err = capsys.readouterr().err
+    assert "discover_many: 0/2 studies done" in err
+    assert "discover_many: 2/2 studies done" in err
+    discover_many(records(1), n_jobs=1, progress=False, **shared_keywords())
+    assert "discover_many" not in capsys.readouterr().err
+
+
+def test_the_inputs_are_not_modified():
+    entries = records(2)
+    keywords = shared_keywords()
+    before = [(y.copy(), t.copy()) for y, t in entries]
+    options = dict(keywords["options"])
+    discover_many(entries, n_jobs=1, progress=False, **keywords)
+    for (y, t), (y0, t0) in zip(entries, before):
+        assert (y == y0).all() and (t == t0).all()
+    assert keywords["options"] == options
