@@ -97,8 +97,9 @@ def discover_many(
     records : list
         One entry per study: a :class:`~pysindy_mme.Record`, a tuple
         ``(y, t)`` or ``(y, t, u)``, an array ``y`` (``t`` then given once
-        in ``discover_kwargs``, shared by all), a list of records (one study
-        of several records, as :func:`discover` takes them), or a dict of
+        in ``discover_kwargs``, shared by all), a list of
+        :class:`~pysindy_mme.Record` (one study of several records, as
+        :func:`discover` takes them), or a dict of
         :func:`discover`'s keywords with ``"y"`` (what differs between the
         studies: ``{"y": y, "t": t, "options": {...}}``). A keyword given
         both in an entry and in ``discover_kwargs`` is an error.
@@ -239,9 +240,9 @@ def _entry(entry, where: str):
     if isinstance(entry, (str, bytes, set)) or entry is None:
         raise TypeError(
             f"{where} must be a Record, a tuple (y, t[, u]), an array y, a list "
-            f"of records or a dict of discover's keywords; got {type(entry).__name__}"
+            f"of Record or a dict of discover's keywords; got {type(entry).__name__}"
         )
-    return entry, None, {}  # an array y, or a list of records (one study)
+    return entry, None, {}  # an array y, or a list of Record (one study)
 
 
 def _prepared(arguments: list) -> list:

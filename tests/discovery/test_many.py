@@ -4,8 +4,9 @@ give the results of as many serial discover calls, to the last bit.
 Fifty short records of the paper's Van der Pol case (``tests/many_case.py``)
 run once serially through :func:`discover`, then through
 :func:`discover_many` on a ``LocalCluster`` of two worker processes on the
-loopback interface, and on two local processes (joblib); every result must
-be identical. Failures of single studies, warnings and the progress line
+loopback interface, and on local processes (joblib: ten of them on two
+processes; all fifty, on one process per core, in a ``slow`` test); every
+result must be identical. Failures of single studies, warnings and the progress line
 are checked on a few records. Bad input is in ``test_bad_input_many.py``.
 """
 
@@ -88,9 +89,18 @@ def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
     assert str(pickle.loads(pickle.dumps(many[0]))) == str(serial[0])
 
 
+def test_local_processes_match_serial_calls(fifty):
+    """Two local processes (joblib), on the first ten of the records."""
+    entries, serial = fifty
+    many = discover_many(entries[:10], n_jobs=2, progress=False, **shared_keywords())
+    for one, other in zip(serial, many):
+        assert same_result(one, other)
+
+
+@pytest.mark.slow
 def test_fifty_records_on_local_processes_match_fifty_serial_calls(fifty):
     entries, serial = fifty
-    many = discover_many(entries, n_jobs=2, progress=False, **shared_keywords())
+    many = discover_many(entries, progress=False, **shared_keywords())  # all cores
     for one, other in zip(serial, many):
         assert same_result(one, other)
 
@@ -120,7 +130,7 @@ def test_every_kind_of_entry_gives_the_same_study():
 
     (y, t), (y2, t2) = records(2)
     many = discover_many(
-        [Record(y, t), {"y": y, "t": t}, [(y, t), (y2, t2)]],
+        [Record(y, t), {"y": y, "t": t}, [Record(y, t), Record(y2, t2)]],
         n_jobs=1,
         progress=False,
         **shared_keywords(),
@@ -128,7 +138,8 @@ def test_every_kind_of_entry_gives_the_same_study():
     alone = discover(y, t, **shared_keywords())
     same_result(alone, many[0])
     same_result(alone, many[1])
-    same_result(discover([(y, t), (y2, t2)], **shared_keywords()), many[2])
+    several = discover([Record(y, t), Record(y2, t2)], **shared_keywords())
+    same_result(several, many[2])
     shared_t = discover_many([y], t=t, n_jobs=1, progress=False, **shared_keywords())
     same_result(alone, shared_t[0])
 
