@@ -252,7 +252,11 @@ def _prepared(arguments: list) -> list:
         try:
             out.append(prepare_study(y, t, **keywords))
         except (TypeError, ValueError) as exc:
-            raise type(exc)(f"records[{i}]: {exc}") from exc
+            try:  # the same class, the record named in front
+                named = type(exc)(f"records[{i}]: {exc}")
+            except Exception:  # noqa: BLE001 - a class that takes other arguments
+                raise exc from None
+            raise named from exc
     return out
 
 
