@@ -9,17 +9,18 @@ workers)`` (local processes, joblib); and ``discover_many(client=...)`` on
 a ``LocalCluster`` of ``workers`` worker processes on the loopback
 interface. The engines that start processes run twice: "cold" includes
 starting them and importing the package in each (the cluster's own
-start-up is timed apart), "warm" reuses them (joblib keeps its processes;
-the cluster stays up). Prints a markdown table: wall time, speed-up over the loop, and
-whether every result is identical to the loop's (terms, coefficients,
-standard errors, gains, simulations, summary and report text, to the last
-bit). The assumed model is defined in ``__main__``, so it travels to the
+start-up is timed apart), "warm" reuses them (joblib keeps its
+processes; the cluster stays up). Prints a markdown table: wall time,
+speed-up over the loop, and whether every result is identical to the
+loop's (terms, coefficients, standard errors, gains, simulations, summary
+and report text, to the last bit). The assumed model is defined in ``__main__``, so it travels to the
 workers by value (cloudpickle).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
 
@@ -119,7 +120,10 @@ def main(argv=None):
     exact = sum(set(r.terms.get("x2", {})) == {"x1", "x2", "x1^2 x2"} for r in serial)
     print(
         f"\n{args.records} records of the paper's Van der Pol case "
-        f"({grid.size} samples each); exact terms in {exact}/{args.records}\n"
+        f"({grid.size} samples each); exact terms in {exact}/{args.records}; "
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[1]:.1f} over "
+        "the last 5 minutes (other work on the machine slows the parallel rows "
+        "most)\n"
     )
     print(
         "| engine | cluster start-up (s) | time (s) | per study (ms) | speed-up "
