@@ -13,8 +13,8 @@ start-up is timed apart), "warm" reuses them (joblib keeps its
 processes; the cluster stays up). Prints a markdown table: wall time,
 speed-up over the loop, and whether every result is identical to the
 loop's (terms, coefficients, standard errors, gains, simulations, summary
-and report text, to the last bit). The assumed model is defined in ``__main__``, so it travels to the
-workers by value (cloudpickle).
+and report text, to the last bit). The assumed model is defined in
+``__main__``, so it travels to the workers by value (cloudpickle).
 """
 
 from __future__ import annotations
