@@ -6,8 +6,10 @@ run once serially through :func:`discover`, then through
 :func:`discover_many` on a ``LocalCluster`` of two worker processes on the
 loopback interface, and on local processes (joblib: ten of them on two
 processes; all fifty, on one process per core, in a ``slow`` test); every
-result must be identical. Failures of single studies, warnings and the progress line
-are checked on a few records. Bad input is in ``test_bad_input_many.py``.
+result must be identical, and the warnings re-issued must be the serial
+calls' warnings, each prefixed with its record. Failures of single
+studies, the kinds of entry and the progress line are checked on a few
+records. Bad input is in ``test_bad_input_many.py``.
 """
 
 from __future__ import annotations
@@ -45,10 +47,27 @@ def _serial(entries, **overrides):
     return out, caught_all
 
 
+def _many(entries, **engine):
+    """discover_many with the warnings it re-issued."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = discover_many(entries, **engine, **shared_keywords())
+    return out, [str(w.message) for w in caught]
+
+
+def _prefixed(serial_warnings) -> list:
+    """What discover_many re-issues for these serial calls' warnings."""
+    return [
+        f"records[{i}]: {message}"
+        for i, messages in enumerate(serial_warnings)
+        for message in messages
+    ]
+
+
 @pytest.fixture(scope="module")
 def fifty():
     entries = records(N_RECORDS)
-    return entries, _serial(entries)[0]
+    return (entries, *_serial(entries))
 
 
 @pytest.fixture(scope="module")
@@ -76,12 +95,13 @@ def cluster_client():
 def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
     fifty, cluster_client, capsys
 ):
-    entries, serial = fifty
-    many = discover_many(entries, client=cluster_client, **shared_keywords())
+    entries, serial, serial_warnings = fifty
+    many, caught = _many(entries, client=cluster_client)
     assert len(many) == N_RECORDS
     for one, other in zip(serial, many):
         assert isinstance(other, Discovery)
         assert same_result(one, other)
+    assert caught == _prefixed(serial_warnings)
     assert f"discover_many: {N_RECORDS}/{N_RECORDS} studies done" in (
         capsys.readouterr().err
     )
@@ -91,36 +111,30 @@ def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
 
 def test_local_processes_match_serial_calls(fifty):
     """Two local processes (joblib), on the first ten of the records."""
-    entries, serial = fifty
-    many = discover_many(entries[:10], n_jobs=2, progress=False, **shared_keywords())
+    entries, serial, serial_warnings = fifty
+    many, caught = _many(entries[:10], n_jobs=2, progress=False)
     for one, other in zip(serial, many):
         assert same_result(one, other)
+    assert caught == _prefixed(serial_warnings[:10])
 
 
 @pytest.mark.slow
 def test_fifty_records_on_local_processes_match_fifty_serial_calls(fifty):
-    entries, serial = fifty
-    many = discover_many(entries, progress=False, **shared_keywords())  # all cores
+    entries, serial, serial_warnings = fifty
+    many, caught = _many(entries, progress=False)  # one process per core
     for one, other in zip(serial, many):
         assert same_result(one, other)
+    assert caught == _prefixed(serial_warnings)
 
 
-def test_in_this_process_with_the_warnings_of_serial_calls():
+def test_in_this_process_with_the_warnings_of_serial_calls(fifty):
     """n_jobs=1: the same results, each study's warnings re-issued with its
-    record, in the order of the records."""
-    entries = records(3)
-    serial, serial_warnings = _serial(entries)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        many = discover_many(entries, n_jobs=1, progress=False, **shared_keywords())
+    record, in the order of the records (seeds 26-30: two of them warn)."""
+    entries, serial, serial_warnings = (part[26:31] for part in fifty)
+    many, caught = _many(entries, n_jobs=1, progress=False)
     for one, other in zip(serial, many):
         assert same_result(one, other)
-    expected = [
-        f"records[{i}]: {message}"
-        for i, messages in enumerate(serial_warnings)
-        for message in messages
-    ]
-    assert [str(w.message) for w in caught] == expected
+    assert caught and caught == _prefixed(serial_warnings)
 
 
 def test_every_kind_of_entry_gives_the_same_study():
