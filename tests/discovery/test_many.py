@@ -14,9 +14,13 @@ records. Bad input is in ``test_bad_input_many.py``.
 
 from __future__ import annotations
 
+import os
 import pickle
+import subprocess
+import sys
 import warnings
 
+import numpy as np
 import pytest
 from many_case import (
     BrokenOptimizer,
@@ -207,3 +211,43 @@ def test_the_inputs_are_not_modified():
     for (y, t), (y0, t0) in zip(entries, before):
         assert (y == y0).all() and (t == t0).all()
     assert keywords["options"] == options
+
+
+def test_dask_is_imported_only_for_a_client():
+    """dask stays an optional extra: importing the package and running on
+    this process or local processes never imports it."""
+    code = (
+        "import sys, pysindy_mme\n"
+        "from many_case import records, shared_keywords\n"
+        "pysindy_mme.discover_many(records(1), n_jobs=1, progress=False,\n"
+        "                          **shared_keywords())\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in\n"
+        "             ('dask', 'distributed')))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+
+
+def test_a_client_without_distributed_installed(monkeypatch, no_long_computation):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    with pytest.raises(TypeError, match=r"pip install pysindy-mme\[distributed\]"):
+        discover_many(records(1), client=object(), **shared_keywords())
+
+
+def test_a_lambda_model_travels_by_value():
+    """cloudpickle sends a lambda (or a function defined in a function) by
+    value, so local processes run it; the results are the serial ones."""
+
+    def model(x, t):
+        return np.column_stack([x[:, 1], np.zeros(len(x))])
+
+    entries = records(2)
+    keywords = shared_keywords(assumed_model=lambda x, t: model(x, t))
+    serial = [discover(y, t, **keywords) for y, t in entries]
+    many = discover_many(entries, n_jobs=2, progress=False, **keywords)
+    for one, other in zip(serial, many):
+        assert same_result(one, other)
