@@ -151,6 +151,24 @@ def discover_many(
     prefixed with ``records[i]:`` (from any engine alike). With
     ``options={"verbose": True}`` each study also prints its stages where
     it runs (a worker's standard error on a cluster).
+
+    ``n_jobs=None`` means one process per core, not scikit-learn's "one
+    job": this call exists to run studies side by side. Results from other
+    processes hold copies of the model and library (unpickled there and
+    back). Every study is checked, and held as bytes for the workers,
+    before the first one starts, so memory grows with the records' total
+    size.
+
+    Examples
+    --------
+    >>> from pysindy_mme import discover_many
+    >>> results = discover_many(
+    ...     [(y1, t1), (y2, t2)], assumed_model=f, n_states=2, measured=[0],
+    ...     noise_variance=0.01, error_states=[1], n_jobs=2,
+    ... )  # doctest: +SKIP
+    >>> from distributed import Client  # doctest: +SKIP
+    >>> with Client("tcp://scheduler:8786") as client:  # doctest: +SKIP
+    ...     results = discover_many(records, client=client, **keywords)
     """
     engine = engines.choose(client, n_jobs)
     _check_flags(progress, on_error)
