@@ -33,9 +33,10 @@ def vdp_assumed(x, t):
     return np.column_stack([x[:, 1], np.zeros(len(x))])
 
 
-def records(n: int) -> list:
-    """``n`` records ``(y, t)``: seeds 0..n-1, x1 at 40 Hz for 10 s."""
-    return [(d.y, d.t) for d in (VDP.measure(seed) for seed in range(n))]
+def records(n: int, first: int = 0) -> list:
+    """``n`` records ``(y, t)``: seeds first..first+n-1, x1 at 40 Hz for 10 s."""
+    seeds = range(first, first + n)
+    return [(d.y, d.t) for d in (VDP.measure(seed) for seed in seeds)]
 
 
 def shared_keywords(**overrides) -> dict:
