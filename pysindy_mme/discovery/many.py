@@ -228,8 +228,9 @@ def _study_arguments(records, shared: dict) -> list:
     return out
 
 
-def _check_keywords(keywords: dict, where: str) -> None:
-    unknown = sorted(set(keywords) - set(_DISCOVER_KEYWORDS) - {"y", "t"})
+def _check_keywords(keywords: dict, where: str, data=("t",)) -> None:
+    """Only discover's keywords, and of its data the names in ``data``."""
+    unknown = sorted(set(keywords) - set(_DISCOVER_KEYWORDS) - set(data))
     if unknown:
         raise TypeError(
             f"{where} got unexpected keyword argument(s) {unknown}; discover "
@@ -252,7 +253,7 @@ def _entry(entry, where: str):
     if isinstance(entry, dict):
         if "y" not in entry:
             raise ValueError(f"{where} is a dict without 'y': {sorted(entry)}")
-        _check_keywords(entry, where)
+        _check_keywords(entry, where, data=("y", "t"))
         own = {k: v for k, v in entry.items() if k not in ("y", "t")}
         return entry["y"], entry.get("t"), own
     if isinstance(entry, (str, bytes, set)) or entry is None:

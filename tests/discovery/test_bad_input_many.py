@@ -115,6 +115,12 @@ BAD_INPUTS = [
         r"discover_many\(\) got unexpected keyword argument\(s\) \['noise_varaince'\]",
     ),
     Bad(
+        "discover_many: y as a shared keyword",
+        lambda tmp: _many(y=Y),
+        TypeError,
+        r"discover_many\(\) got unexpected keyword argument\(s\) \['y'\]",
+    ),
+    Bad(
         "discover_many: a moved keyword",
         lambda tmp: _many(alpha=0.01),
         TypeError,
