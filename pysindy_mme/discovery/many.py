@@ -4,9 +4,10 @@ Every study is checked here first (:func:`~.study.prepare_study`, the
 checks :func:`discover` makes), so a bad record or argument fails before
 any study starts, with ``records[i]`` in the message. Each checked study
 then runs exactly as :func:`discover` runs it (:func:`~.study.run_study`),
-on one of three engines (:mod:`~pysindy_mme.core.engines`): this process (``n_jobs=1``),
-local processes (joblib), or a Dask cluster (``client=``). A study that
-fails does not stop the others; its failure is reported with its record.
+on one of three engines (:mod:`~pysindy_mme.core.engines`): this process
+(``n_jobs=1``), local processes (joblib), or a Dask cluster (``client=``).
+A study that fails does not stop the others; its failure is reported with
+its record.
 """
 
 from __future__ import annotations
@@ -172,7 +173,7 @@ def discover_many(
     """
     engine = engines.choose(client, n_jobs)
     _check_flags(progress, on_error)
-    studies = _prepared(_study_arguments(records, discover_kwargs))
+    studies, checked = _prepared(_study_arguments(records, discover_kwargs))
     if engine.remote:  # the same bytes for every engine that sends them away
         studies = [
             _payload(i, s, records, discover_kwargs) for i, s in enumerate(studies)
@@ -182,6 +183,8 @@ def discover_many(
     for index, value, error in engine.run(_run_one, studies):
         outcomes[index] = _outcome(index, value, error)
         line.update(outcomes[index].failure is not None)
+    for outcome, warned in zip(outcomes, checked):  # as discover: checks first
+        outcome.warnings[:0] = warned
     return _results(outcomes, on_error)
 
 
@@ -264,19 +267,36 @@ def _entry(entry, where: str):
     return entry, None, {}  # an array y, or a list of Record (one study)
 
 
-def _prepared(arguments: list) -> list:
-    """``[(Study, StudyOptions)]``: every study checked before any runs."""
-    out = []
+def _prepared(arguments: list) -> tuple:
+    """``([(Study, StudyOptions)], [warnings of each check])``: every study
+    checked before any runs; the checks' warnings are kept to be issued
+    with the study's own, in the order :func:`discover` gives them."""
+    out, warned = [], []
     for i, (y, t, keywords) in enumerate(arguments):
-        try:
-            out.append(prepare_study(y, t, **keywords))
-        except (TypeError, ValueError) as exc:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                out.append(prepare_study(y, t, **keywords))
+            except (TypeError, ValueError) as exc:
+                error = exc
+            else:
+                error = None
+        warned.append([(w.category, str(w.message)) for w in caught])
+        if error is not None:
+            _reissue(warned)
             try:  # the same class, the record named in front
-                named = type(exc)(f"records[{i}]: {exc}")
+                named = type(error)(f"records[{i}]: {error}")
             except Exception:  # noqa: BLE001 - a class that takes other arguments
-                raise exc from None
-            raise named from exc
-    return out
+                raise error from None
+            raise named from error
+    return out, warned
+
+
+def _reissue(warned: list, stacklevel: int = 4) -> None:
+    """Each record's warnings, prefixed with the record."""
+    for i, caught in enumerate(warned):
+        for category, message in caught:
+            warnings.warn(f"records[{i}]: {message}", category, stacklevel=stacklevel)
 
 
 def _payload(index: int, prepared, records, shared: dict) -> bytes:
@@ -348,9 +368,8 @@ def _outcome(index: int, value, error) -> _Outcome:
 
 def _results(outcomes: list, on_error: str) -> list:
     results, failures = [], []
-    for i, outcome in enumerate(outcomes):
-        for category, message in outcome.warnings:
-            warnings.warn(f"records[{i}]: {message}", category, stacklevel=3)
+    _reissue([outcome.warnings for outcome in outcomes], stacklevel=4)
+    for outcome in outcomes:
         if outcome.failure is not None:
             failures.append(outcome.failure)
             results.append(outcome.failure)

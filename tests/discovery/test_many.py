@@ -255,3 +255,30 @@ def test_a_lambda_model_travels_by_value():
     many = discover_many(entries, n_jobs=2, progress=False, **keywords)
     for one, other in zip(serial, many):
         assert same_result(one, other)
+
+
+def test_warnings_of_the_checks_come_first_with_their_record(monkeypatch):
+    """A warning of a study's checks is issued before that study's own, as
+    discover gives them; when a later record is refused, the warnings of
+    the records checked before it are still issued."""
+    from pysindy_mme.discovery import many as many_module
+
+    real = many_module.prepare_study
+
+    def warning_check(y, t, **keywords):
+        warnings.warn("checked", UserWarning, stacklevel=2)
+        return real(y, t, **keywords)
+
+    monkeypatch.setattr(many_module, "prepare_study", warning_check)
+    (y, t), (y2, t2) = records(2, first=26)
+    _, caught = _many([(y, t), (y2, t2)], n_jobs=1, progress=False)
+    assert caught[0] == "records[0]: checked"
+    assert caught.index("records[1]: checked") > 0
+    with warnings.catch_warnings(record=True) as refused:
+        warnings.simplefilter("always")
+        with pytest.raises(ValueError, match=r"records\[1\]: t has 5 entries"):
+            discover_many([(y, t), (y2, t2[:5])], n_jobs=1, **shared_keywords())
+    assert [str(w.message) for w in refused] == [
+        "records[0]: checked",
+        "records[1]: checked",
+    ]
