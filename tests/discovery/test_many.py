@@ -4,7 +4,7 @@ give the results of as many serial discover calls, to the last bit.
 Fifty short records of the paper's Van der Pol case (``tests/many_case.py``)
 run once serially through :func:`discover`, then through
 :func:`discover_many` on a ``LocalCluster`` of two worker processes on the
-loopback interface, and on local processes (joblib: ten records on two
+loopback interface, and on local processes (joblib: six records on two
 processes; all fifty, on one process per core, in a ``slow`` test); every
 result must be identical, and the warnings re-issued must be the serial
 calls' warnings, each prefixed with its record. Failures of single
@@ -114,10 +114,10 @@ def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
 
 
 def test_local_processes_match_serial_calls():
-    """Two local processes (joblib), on ten records (seeds 25-34: two of
+    """Two local processes (joblib), on six records (seeds 25-30: two of
     them warn). Not from the fifty: under pytest-xdist each worker would
     rebuild them."""
-    entries = records(10, first=25)
+    entries = records(6, first=25)
     serial, serial_warnings = _serial(entries)
     many, caught = _many(entries, n_jobs=2, progress=False)
     for one, other in zip(serial, many):
@@ -136,8 +136,8 @@ def test_fifty_records_on_local_processes_match_fifty_serial_calls(fifty):
 
 def test_in_this_process_with_the_warnings_of_serial_calls():
     """n_jobs=1: the same results, each study's warnings re-issued with its
-    record, in the order of the records (seeds 26-30: two of them warn)."""
-    entries = records(5, first=26)
+    record, in the order of the records (seeds 26-28: one of them warns)."""
+    entries = records(3, first=26)
     serial, serial_warnings = _serial(entries)
     many, caught = _many(entries, n_jobs=1, progress=False)
     for one, other in zip(serial, many):
