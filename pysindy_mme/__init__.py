@@ -3,7 +3,8 @@
 Find what an assumed model gets wrong (:class:`MME`), explain the error with
 a library of functions of the state (:class:`FloatingFStepwise`,
 :class:`PowerLibrary`), and measure how much the extended model helps
-(:func:`discover`).
+(:func:`discover`; many studies at once, locally or on a Dask cluster:
+:func:`discover_many`).
 """
 
 from . import datasets
@@ -13,6 +14,7 @@ from .differentiation import MME
 from .differentiation.sindy_route import extended_model_from_sindy
 from .discovery import Discovery, ExtendedModel, Parameter, discover
 from .discovery.inputs import Record
+from .discovery.many import StudyFailure, discover_many
 from .discovery.options import StudyOptions
 from .exceptions import (
     DiscoveryWarning,
@@ -20,6 +22,7 @@ from .exceptions import (
     ExcludedFeaturesWarning,
     NotSavedError,
     StepwiseCycleWarning,
+    StudiesFailedError,
 )
 from .feature_library import PhysicsLibrary, PowerLibrary
 from .optimizers import FloatingFStepwise
@@ -35,6 +38,8 @@ __all__ = [
     "PowerLibrary",
     "PhysicsLibrary",
     "discover",
+    "discover_many",
+    "StudyFailure",
     "datasets",
     "estimate_noise_variance",
     "extended_model_from_sindy",
@@ -44,4 +49,5 @@ __all__ = [
     "ExcludedFeaturesWarning",
     "NotSavedError",
     "StepwiseCycleWarning",
+    "StudiesFailedError",
 ]

@@ -12,6 +12,7 @@ __all__ = [
     "StepwiseCycleWarning",
     "ExcludedFeaturesWarning",
     "NotSavedError",
+    "StudiesFailedError",
 ]
 
 
@@ -39,3 +40,32 @@ class NotSavedError(AttributeError):
     ``AttributeError``, so that ``getattr(result.mme, name, default)`` and
     ``hasattr`` treat what was not saved as absent.
     """
+
+
+class StudiesFailedError(RuntimeError):
+    """Some studies of :func:`~pysindy_mme.discover_many` raised.
+
+    Raised after every study has run; the message names each failed record
+    and its exception.
+
+    Attributes
+    ----------
+    results : list
+        One entry per record, in order: the result of each study that
+        finished, a :class:`~pysindy_mme.discovery.many.StudyFailure` (with
+        ``index``, ``exception``, ``traceback``) for each that raised.
+    failures : list
+        The failures alone.
+    """
+
+    def __init__(self, results, failures):
+        self.results = list(results)
+        self.failures = list(failures)
+        lines = "\n".join(f"  {f}" for f in self.failures)
+        super().__init__(
+            f"{len(self.failures)} of {len(self.results)} studies failed "
+            f"(the others' results are in .results):\n{lines}"
+        )
+
+    def __reduce__(self):
+        return type(self), (self.results, self.failures)

@@ -23,6 +23,7 @@ TESTS = Path(__file__).resolve().parent
 TABLES = {
     "MME": ("differentiation/test_bad_input.py", 25),
     "discover": ("discovery/test_bad_input.py", 20),
+    "discover_many": ("discovery/test_bad_input_many.py", 15),
     "PowerLibrary": ("feature_library/test_bad_input.py", 15),
     "FloatingFStepwise": ("optimizers/test_bad_input.py", 30),
     "command line": ("cli/test_cli_slips.py", 35),

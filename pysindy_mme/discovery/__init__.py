@@ -13,7 +13,9 @@ Arguments are checked in one place (``inputs.py``); the answer is a
 :class:`Discovery` (``result.py``) with its report (``report.py``), its
 tables (``summary.py``), its file (``storage.py``: ``save``/``load``) and
 the :class:`ExtendedModel` (``extended.py``; as sympy or Python source:
-``export.py``).
+``export.py``). Many studies at once (records, seeds, bootstrap
+replicates), on local processes or a Dask cluster: ``discover_many``
+(``many.py``, exported from :mod:`pysindy_mme`).
 """
 
 from ..core.extended import ExtendedModel

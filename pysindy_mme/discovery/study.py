@@ -46,7 +46,7 @@ from .steps import (
     step_size_check,
 )
 
-__all__ = ["discover", "run_study"]
+__all__ = ["discover", "prepare_study", "run_study"]
 
 
 def discover(
@@ -143,6 +143,49 @@ def discover(
     ``validation_window=``, ...) raise a ``TypeError`` saying where each
     went.
     """
+    study, opts = prepare_study(
+        y,
+        t,
+        assumed_model=assumed_model,
+        n_states=n_states,
+        measured=measured,
+        noise_variance=noise_variance,
+        error_states=error_states,
+        feature_library=feature_library,
+        optimizer=optimizer,
+        u=u,
+        validation=validation,
+        mme=mme,
+        options=options,
+        **removed,
+    )
+    return run_study(study, Progress(opts.verbose))
+
+
+def prepare_study(
+    y,
+    t=None,
+    *,
+    assumed_model=None,
+    n_states=None,
+    measured=None,
+    noise_variance=None,
+    error_states=None,
+    feature_library=None,
+    optimizer=None,
+    u=None,
+    validation=None,
+    mme=None,
+    options=None,
+    **removed,
+):
+    """:func:`discover`'s arguments checked: ``(Study, StudyOptions)``.
+
+    Everything :func:`discover` does before the first long computation, so
+    that :func:`~.many.discover_many` can check every study before any
+    starts and then run exactly what :func:`discover` would
+    (``run_study`` on the checked study).
+    """
     refuse_moved(removed)
     opts = as_options(options)
     given = dict(
@@ -172,7 +215,7 @@ def discover(
         hidden_states=opts.hidden_states,
         **given,
     )
-    return run_study(study, Progress(opts.verbose))
+    return study, opts
 
 
 def run_study(study, progress: Progress) -> Discovery:
