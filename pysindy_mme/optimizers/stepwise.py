@@ -36,7 +36,9 @@ from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_param
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
 from .final_fit import final_fit
+from .gram import GramState
 from .incremental_qr import IncrementalQR
+from .moments import library_moments, use_moments
 from .robust import rows_look_time_ordered
 from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
 from .screening import Screen, screen_columns
@@ -436,6 +438,18 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             )
 
         n_targets = y.shape[1]
+        # Tall, narrow libraries: every target's selection from moments that
+        # two passes over the data compute (see optimizers/moments.py).
+        moments = None
+        if use_moments(x.shape[0], int(screen.eligible.sum()) + 1 + n_targets):
+            y_scale = pow2_scale(np.max(np.abs(y), axis=0, initial=0.0))
+            moments = library_moments(
+                x,
+                np.sqrt(w),
+                y * y_scale,
+                screen,
+                lags=rule.lags if rule.robust else None,
+            )
         coef = np.zeros((n_targets, n_features))
         intercept = np.zeros(n_targets)
         self.history_ = [coef.copy()]
@@ -451,7 +465,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         lost = []
         for t in range(n_targets):
             coef[t], intercept[t], significant_lost = self._fit_target(
-                x, y[:, t], w, screen, rule, t, coef
+                x, y[:, t], w, screen, rule, t, coef, moments
             )
             self.history_.append(coef.copy())
             if significant_lost:
@@ -527,8 +541,13 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """The paper's Phase I rule, for a strongly autocorrelated residual."""
         return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
 
-    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef):
-        """Select and fit one target; returns its coefficient row and intercept."""
+    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef, moments):
+        """Select and fit one target; returns its coefficient row and intercept.
+
+        With ``moments`` (a tall, narrow library) the selection reads them
+        instead of the data (:class:`~.gram.GramState`); the decisions are
+        the same.
+        """
         n_eff = float(w.sum())
         sw = np.sqrt(w)
         # The target in units of its largest magnitude (an exact power of two):
@@ -537,6 +556,10 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         yt = y * y_scale
 
         def make_state():
+            if moments is not None:
+                return GramState(
+                    moments, target, screen, n_eff, self.tolerance, 1.0 / y_scale
+                )
             return IncrementalQR(
                 x, sw, yt * sw, screen, n_eff, self.tolerance, y_unit=1.0 / y_scale
             )

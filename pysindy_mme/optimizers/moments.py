@@ -1,0 +1,187 @@
+"""Sufficient statistics of a tall, narrow library: the selection in two passes.
+
+With ``n`` rows and few columns (a million samples of a degree-2 polynomial
+library), every statistic the selection reads is a function of a few small
+matrices that two passes over the data compute once for every target:
+
+* ``R``, the triangular factor of ``Z = sqrt(w) [1, X, Y]`` (the weighted
+  constant, the eligible library columns, every target; each column in its
+  power-of-two units). The least-squares fit of any target on any subset of
+  columns, hence every classic partial F-ratio, follows from ``R`` alone
+  (``R^T R = Z^T Z``, and a QR factor is as accurate as a QR of the data).
+* With ``U = Z R^-1`` (orthonormal columns), every vector the selection
+  forms (a model's residual, a candidate's part orthogonal to the model,
+  the rows of a model's pseudo-inverse) is ``U a`` for a small coefficient
+  vector ``a``. A Newey-West score is a product of two such vectors,
+  ``(U a) * (U b) = P v`` with ``P`` the products of pairs of columns of
+  ``U`` and ``v`` built from ``a`` and ``b``; so its long-run variance is
+  ``v^T S v`` with ``S`` the Bartlett long-run covariance of ``P``
+  (:attr:`LibraryMoments.bartlett`). Scores are of fourth order in the data,
+  so lagged Gram matrices of the library itself would not do.
+* The lag-0 and lag-1 Gram matrices of ``U`` give a residual's lag-1
+  autocorrelation (``floating="auto"``).
+
+Cost: ``O(n m^2)`` for ``R`` and ``O(n m^4 / 4)`` for ``S`` with ``m``
+columns in ``Z``, against ``O(n (k + 20) lags)`` per step of the direct
+computation: worth it for tall, narrow libraries only (:func:`use_moments`).
+Where ``Z`` is ill-conditioned (``U`` would not be orthonormal to working
+accuracy, e.g. a noise-free target in the span of the library), there are
+no moments and the selection works on the data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from ._numeric import BLOCK_ELEMENTS
+from .robust import WINDOW_ROWS, BartlettWindows
+
+__all__ = ["LibraryMoments", "library_moments", "pair_vectors", "use_moments"]
+
+# The moments pay off from this many rows ...
+MIN_ROWS = 20_000
+# ... for at most this many columns in Z (constant, eligible columns,
+# targets): S is (m (m + 1) / 2)^2 and costs n m^4 / 8 multiply-adds.
+MAX_COLUMNS = 16
+# U = Z R^-1 is orthonormal to about eps * cond(R); beyond this the robust
+# statistics would lose more than a few digits.
+MAX_CONDITION = 1e7
+
+
+def use_moments(n_rows: int, n_columns: int) -> bool:
+    """Whether a library of ``n_rows`` rows and ``n_columns`` columns of ``Z``
+    is tall and narrow enough for :func:`library_moments`."""
+    return n_rows >= MIN_ROWS and n_columns <= MAX_COLUMNS
+
+
+@dataclass(frozen=True)
+class LibraryMoments:
+    """What the selection of every target reads, computed once.
+
+    Attributes
+    ----------
+    R : ndarray (m, m)
+        Upper triangular factor of ``Z = sqrt(w) [1, X[:, columns], Y]``.
+    columns : ndarray of int (m_x,)
+        Library column of each of ``Z``'s columns ``1 .. m_x``.
+    position : ndarray of int (n_features,)
+        Column of ``Z`` holding each library column (-1: not eligible).
+    n_rows : int
+        Number of rows (the Newey-West small-sample factor counts rows).
+    lags : int or None
+        Bartlett bandwidth of :attr:`bartlett` (None: not computed).
+    lag0, lag1 : ndarray (m, m)
+        ``U^T U`` and ``sum_t U[t]^T U[t + 1]``.
+    bartlett : ndarray (m (m + 1) / 2, m (m + 1) / 2) or None
+        Long-run covariance of the pair products ``U[:, i] * U[:, j]``,
+        ``i <= j`` in :func:`numpy.triu_indices` order.
+    """
+
+    R: np.ndarray
+    columns: np.ndarray
+    position: np.ndarray
+    n_rows: int
+    lags: int | None
+    lag0: np.ndarray
+    lag1: np.ndarray
+    bartlett: np.ndarray | None
+
+    def target_column(self, target: int) -> int:
+        return 1 + self.columns.size + int(target)
+
+
+def pair_vectors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Coefficients on the pair products of the scores ``(U a) * (U b)``.
+
+    ``a``, ``b``: (m, c) (or (m,), broadcast). ``(U a)_t (U b)_t =
+    sum_{i <= j} v_ij U_ti U_tj`` with ``v_ij = a_i b_j + a_j b_i`` (``i <
+    j``) and ``v_ii = a_i b_i``. Returns (m (m + 1) / 2, c).
+    """
+    a = np.atleast_2d(np.asarray(a, dtype=float).T).T
+    b = np.atleast_2d(np.asarray(b, dtype=float).T).T
+    i, j = np.triu_indices(a.shape[0])
+    v = a[i] * b[j] + a[j] * b[i]
+    v[i == j] *= 0.5
+    return v
+
+
+def _design_blocks(x, sw, y_scaled, columns, scale, rows: int):
+    """Row blocks of ``Z = sqrt(w) [1, X[:, columns] * scale, Y]``."""
+    n = x.shape[0]
+    for start in range(0, n, rows):
+        stop = min(start + rows, n)
+        s = sw[start:stop, None]
+        yield np.hstack(
+            [s, x[start:stop, columns] * scale[columns] * s, y_scaled[start:stop] * s]
+        )
+
+
+def library_moments(x, sw, y_scaled, screen, lags=None):
+    """The :class:`LibraryMoments` of a library, or None if ``Z`` is ill-conditioned.
+
+    Parameters
+    ----------
+    x : ndarray (n, n_features)
+        The library (columns that are not ``screen.eligible`` are not read).
+    sw : ndarray (n,)
+        Square roots of the (positive) frequency weights.
+    y_scaled : ndarray (n, n_targets)
+        The targets, each in its power-of-two units.
+    screen : Screen
+        The library screen (eligible columns and their scales).
+    lags : int, optional
+        Newey-West bandwidth; None skips the Bartlett moments (classic rules).
+    """
+    y_scaled = np.asarray(y_scaled, dtype=float).reshape(x.shape[0], -1)
+    columns = np.flatnonzero(screen.eligible)
+    m = 1 + columns.size + y_scaled.shape[1]
+    rows = max(WINDOW_ROWS, BLOCK_ELEMENTS // m)
+    # Pass 1: R by a QR of each block, then of the stacked factors (TSQR).
+    factors = [
+        np.linalg.qr(z, mode="r")
+        for z in _design_blocks(x, sw, y_scaled, columns, screen.scale, rows)
+    ]
+    R = np.linalg.qr(np.vstack(factors), mode="r")
+    if R.shape[0] < m:
+        return None
+    R = R * np.where(np.diag(R) < 0, -1.0, 1.0)[:, None]
+    if not np.linalg.cond(R) < MAX_CONDITION:
+        return None
+    # Pass 2: U = Z R^-1 block by block, its lag-0/1 Gram matrices and the
+    # Bartlett moments of its pair products.
+    rinv = scipy.linalg.solve_triangular(R, np.eye(m))
+    lag0 = np.zeros((m, m))
+    lag1 = np.zeros((m, m))
+    i, j = np.triu_indices(m)
+    windows = None if lags is None else BartlettWindows(lags, i.size)
+    bartlett = None if lags is None else np.zeros((i.size, i.size))
+    last = None
+    for z in _design_blocks(x, sw, y_scaled, columns, screen.scale, WINDOW_ROWS):
+        u = z @ rinv
+        lag0 += u.T @ u
+        lag1 += u[:-1].T @ u[1:]
+        if last is not None:
+            lag1 += np.outer(last, u[0])
+        last = u[-1]
+        if windows is not None:
+            b = windows.feed(u[:, i] * u[:, j])
+            bartlett += b.T @ b
+    if windows is not None:
+        b = windows.tail()
+        bartlett += b.T @ b
+        bartlett /= windows.lags + 1.0
+    position = np.full(x.shape[1], -1)
+    position[columns] = 1 + np.arange(columns.size)
+    return LibraryMoments(
+        R=R,
+        columns=columns,
+        position=position,
+        n_rows=int(x.shape[0]),
+        lags=None if lags is None else int(lags),
+        lag0=lag0,
+        lag1=lag1,
+        bartlett=bartlett,
+    )
