@@ -83,19 +83,25 @@ class GramState:
     def k(self) -> int:
         return len(self.support)
 
-    def _update(self):
-        """Refactor the model (``O(m^3)``): complement coordinates of all columns."""
+    def _factor(self, support):
+        """``(G, T, z, ey, xp)`` of the model ``support`` (``O(m^3)``).
+
+        ``R[:, S] = G [T; 0]``; ``z`` the target's coordinates in the model's
+        span, ``ey`` its residual and ``xp`` every eligible column's residual
+        against the model, in complement coordinates.
+        """
         mo = self.moments
-        cols = [0] + [int(mo.position[j]) for j in self.support]
+        cols = [0] + [int(mo.position[j]) for j in support]
         k1 = len(cols)
         G, Ts = np.linalg.qr(mo.R[:, cols], mode="complete")
-        self.G = G
-        self.T = Ts[:k1]
         wy = G.T @ mo.R[:, self.y_col]
-        self.z = wy[:k1]
-        self.ey = wy[k1:]  # the residual, in complement coordinates
-        wx = G.T @ mo.R[:, 1 : 1 + mo.columns.size]
-        self.xp = wx[k1:]  # every eligible column's residual against the model
+        xp = G[:, k1:].T @ mo.R[:, 1 : 1 + mo.columns.size]
+        return G, Ts[:k1], wy[:k1], wy[k1:], xp
+
+    def _update(self):
+        """Refactor the model: statistics of every candidate."""
+        mo = self.moments
+        self.G, self.T, self.z, self.ey, self.xp = self._factor(self.support)
         nr2 = np.zeros(self.in_model.size)
         g = np.zeros(self.in_model.size)
         nr2[mo.columns] = np.einsum("ij,ij->j", self.xp, self.xp)
@@ -148,10 +154,11 @@ class GramState:
         sse = self.sse()
         return float(safe_ratio((self.sst - sse) / k, sse / (self.n_eff - k - 1)))
 
-    def _tinv(self):
-        tinv, info = dtrtri(self.T, lower=0)
+    def _tinv(self, T=None):
+        T = self.T if T is None else T
+        tinv, info = dtrtri(T, lower=0)
         if info != 0:  # pragma: no cover - T is nonsingular by construction
-            tinv = np.linalg.pinv(self.T)
+            tinv = np.linalg.pinv(T)
         return tinv
 
     def in_model_f(self) -> np.ndarray:
@@ -190,9 +197,11 @@ class GramState:
 
     def residual_lag1(self) -> float:
         """Lag-1 autocorrelation of the residual (``sum e_t e_t+1 / sum e_t^2``)."""
+        return self._lag1(self._full(self.ey))
+
+    def _lag1(self, e) -> float:
         if self.moments.n_rows < 2:
             return 0.0
-        e = self._full(self.ey)
         den = float(e @ self.moments.lag0 @ e)
         return float(e @ self.moments.lag1 @ e) / den if den > 0 else 0.0
 
@@ -256,3 +265,60 @@ class GramState:
         g = xp.T @ self.ey
         w = np.linalg.lstsq(cov, g, rcond=None)[0]
         return float(g @ w) / q
+
+    # ------------------------------------------------------- the final table
+    def pseudo_rows(self, cols):
+        """``m`` weighted rows with the inner products of the data's.
+
+        Returns ``(x, y, w)``: columns ``cols`` of the library (in their
+        power-of-two units) and the scaled target on ``m`` rows of equal
+        weight, whose weighted cross-products (constant included) are those
+        of all the data's rows, and ``sum(w) = n_eff``. Least squares, ANOVA
+        tables and partial F-ratios of entry (:func:`~.anova.fit_anova`)
+        read nothing else, so they are computed on these rows. (A Householder
+        reflection maps the constant's column of ``R``, ``||sqrt(w)|| e_1``,
+        to a constant vector.)
+        """
+        R = self.moments.R
+        m = R.shape[0]
+        a = R[:, 0]
+        t = np.full(m, a[0] / np.sqrt(m))
+        v = a - t
+        vv = float(v @ v)
+        rows = R if vv == 0 else R - np.outer(v, (2.0 / vv) * (v @ R))
+        w = np.full(m, self.n_eff / m)
+        sw = np.sqrt(w)
+        pos = self.moments.position[np.asarray(cols, dtype=int)]
+        return rows[:, pos] / sw[:, None], rows[:, self.y_col] / sw, w
+
+    def table_statistics(self, support, candidates, lags: int) -> dict:
+        """Robust statistics of the model ``support`` (in that order).
+
+        The values of :func:`~.robust.robust_table_statistics` (same keys),
+        from the moments.
+        """
+        self._check_lags(lags)
+        n = self.moments.n_rows
+        G, T, z, ey, xp = self._factor(support)
+        k1 = T.shape[0]
+        tinv = self._tinv(T)
+        beta = tinv @ z
+        e = G[:, k1:] @ ey
+        c = G[:, :k1] @ tinv.T
+        var = self._long_run_variance(c, e[:, None]) * small_sample_factor(n, k1)
+        out = np.zeros(len(candidates))
+        if len(candidates):
+            rp = xp[:, self.moments.position[np.asarray(candidates, dtype=int)] - 1]
+            g = rp.T @ ey
+            b = safe_ratio(g, np.einsum("ij,ij->j", rp, rp))
+            r = G[:, k1:] @ rp
+            v = self._long_run_variance(r, e[:, None] - r * b)
+            out = safe_ratio(g**2, v * small_sample_factor(n, k1 + 1))
+        ee = float(ey @ ey)
+        lrv = max(float(e @ self.moments.bartlett_linear @ e), 0.0)
+        return dict(
+            in_model=np.atleast_1d(safe_ratio(beta**2, var)),
+            out=np.atleast_1d(out),
+            lag1=self._lag1(e),
+            effective_n=float(n * ee / lrv) if lrv > 0 else float(n),
+        )

@@ -19,7 +19,9 @@ matrices that two passes over the data compute once for every target:
   (:attr:`LibraryMoments.bartlett`). Scores are of fourth order in the data,
   so lagged Gram matrices of the library itself would not do.
 * The lag-0 and lag-1 Gram matrices of ``U`` give a residual's lag-1
-  autocorrelation (``floating="auto"``).
+  autocorrelation (``floating="auto"``), and the Bartlett long-run
+  covariance of ``U`` itself a residual's long-run variance (the table's
+  effective number of observations).
 
 Cost: ``O(n m^2)`` for ``R`` and ``O(n m^4 / 4)`` for ``S`` with ``m``
 columns in ``Z``, against ``O(n (k + 20) lags)`` per step of the direct
@@ -78,6 +80,8 @@ class LibraryMoments:
     bartlett : ndarray (m (m + 1) / 2, m (m + 1) / 2) or None
         Long-run covariance of the pair products ``U[:, i] * U[:, j]``,
         ``i <= j`` in :func:`numpy.triu_indices` order.
+    bartlett_linear : ndarray (m, m) or None
+        Long-run covariance of ``U``.
     """
 
     R: np.ndarray
@@ -88,6 +92,7 @@ class LibraryMoments:
     lag0: np.ndarray
     lag1: np.ndarray
     bartlett: np.ndarray | None
+    bartlett_linear: np.ndarray | None
 
     def target_column(self, target: int) -> int:
         return 1 + self.columns.size + int(target)
@@ -156,8 +161,12 @@ def library_moments(x, sw, y_scaled, screen, lags=None):
     lag0 = np.zeros((m, m))
     lag1 = np.zeros((m, m))
     i, j = np.triu_indices(m)
-    windows = None if lags is None else BartlettWindows(lags, i.size)
-    bartlett = None if lags is None else np.zeros((i.size, i.size))
+    windows = linear = bartlett = bartlett_linear = None
+    if lags is not None:
+        windows = BartlettWindows(lags, i.size)
+        linear = BartlettWindows(lags, m)
+        bartlett = np.zeros((i.size, i.size))
+        bartlett_linear = np.zeros((m, m))
     last = None
     for z in _design_blocks(x, sw, y_scaled, columns, screen.scale, WINDOW_ROWS):
         u = z @ rinv
@@ -169,10 +178,15 @@ def library_moments(x, sw, y_scaled, screen, lags=None):
         if windows is not None:
             b = windows.feed(u[:, i] * u[:, j])
             bartlett += b.T @ b
+            b = linear.feed(u)
+            bartlett_linear += b.T @ b
     if windows is not None:
         b = windows.tail()
         bartlett += b.T @ b
         bartlett /= windows.lags + 1.0
+        b = linear.tail()
+        bartlett_linear += b.T @ b
+        bartlett_linear /= linear.lags + 1.0
     position = np.full(x.shape[1], -1)
     position[columns] = 1 + np.arange(columns.size)
     return LibraryMoments(
@@ -184,4 +198,5 @@ def library_moments(x, sw, y_scaled, screen, lags=None):
         lag0=lag0,
         lag1=lag1,
         bartlett=bartlett,
+        bartlett_linear=bartlett_linear,
     )
