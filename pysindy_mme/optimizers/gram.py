@@ -24,15 +24,26 @@ import scipy.linalg
 from scipy.linalg.lapack import dtrtri
 
 from ._numeric import safe_ratio
+from .incremental_qr import IncrementalQR
 from .moments import LibraryMoments, pair_vectors
 from .robust import ROBUST_CANDIDATES, classic_joint_f, small_sample_factor
 from .screening import Screen
 
-__all__ = ["GramState"]
+__all__ = ["GramState", "selection_state"]
 
 # Same meaning as in IncrementalQR: a target reproduced to this relative
 # accuracy is fitted to rounding level.
 EXACT_FIT_RTOL = 1e-12
+
+
+def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scale):
+    """The selection state of one target: from ``moments`` if there are any.
+
+    ``yw``: the weighted target in its power-of-two units (``y_scale``).
+    """
+    if moments is not None:
+        return GramState(moments, target, screen, n_eff, tolerance, 1.0 / y_scale)
+    return IncrementalQR(x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale)
 
 
 class GramState:

@@ -38,10 +38,16 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ._numeric import BLOCK_ELEMENTS
+from ._numeric import BLOCK_ELEMENTS, pow2_scale
 from .robust import WINDOW_ROWS, BartlettWindows
 
-__all__ = ["LibraryMoments", "library_moments", "pair_vectors", "use_moments"]
+__all__ = [
+    "LibraryMoments",
+    "library_moments",
+    "pair_vectors",
+    "tall_moments",
+    "use_moments",
+]
 
 # The moments pay off from this many rows ...
 MIN_ROWS = 20_000
@@ -200,3 +206,15 @@ def library_moments(x, sw, y_scaled, screen, lags=None):
         bartlett=bartlett,
         bartlett_linear=bartlett_linear,
     )
+
+
+def tall_moments(x, w, y, screen, lags=None):
+    """The moments of a tall, narrow library (:func:`use_moments`), else None.
+
+    ``w``: positive frequency weights; ``y`` (n, n_targets), each target put
+    in its power-of-two units here as the selection does.
+    """
+    if not use_moments(x.shape[0], int(screen.eligible.sum()) + 1 + y.shape[1]):
+        return None
+    y_scale = pow2_scale(np.max(np.abs(y), axis=0, initial=0.0))
+    return library_moments(x, np.sqrt(w), y * y_scale, screen, lags)

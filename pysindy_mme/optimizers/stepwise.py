@@ -9,10 +9,8 @@ incremental QR state (:mod:`.incremental_qr`), and describes the chosen
 model by a direct least-squares fit and its ANOVA table (:mod:`.final_fit`,
 :mod:`.anova`).
 
-The selection never refits the model per candidate: adding a function costs
-one pass over the library (``O(n_samples * n_candidates)``), removing one
-``O(n_samples * k^2 + k^2 * n_candidates)`` for ``k`` functions in the model.
-The library is never copied.
+No refit per candidate: an addition costs one pass over the library; a tall,
+narrow library is selected from moments of two passes (:mod:`.moments`).
 
 Units: partial F-ratios do not depend on the scale of a column or of the
 target, but sums of squares of values near ``1e+-154`` overflow or underflow.
@@ -36,9 +34,8 @@ from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_param
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
 from .final_fit import final_fit
-from .gram import GramState
-from .incremental_qr import IncrementalQR
-from .moments import library_moments, use_moments
+from .gram import selection_state
+from .moments import tall_moments
 from .robust import rows_look_time_ordered
 from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
 from .screening import Screen, screen_columns
@@ -438,18 +435,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             )
 
         n_targets = y.shape[1]
-        # Tall, narrow libraries: every target's selection from moments that
-        # two passes over the data compute (see optimizers/moments.py).
-        moments = None
-        if use_moments(x.shape[0], int(screen.eligible.sum()) + 1 + n_targets):
-            y_scale = pow2_scale(np.max(np.abs(y), axis=0, initial=0.0))
-            moments = library_moments(
-                x,
-                np.sqrt(w),
-                y * y_scale,
-                screen,
-                lags=rule.lags if rule.robust else None,
-            )
+        moments = tall_moments(x, w, y, screen, rule.lags if rule.robust else None)
         coef = np.zeros((n_targets, n_features))
         intercept = np.zeros(n_targets)
         self.history_ = [coef.copy()]
@@ -542,12 +528,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
 
     def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef, moments):
-        """Select and fit one target; returns its coefficient row and intercept.
-
-        With ``moments`` (a tall, narrow library) the selection reads them
-        instead of the data (:class:`~.gram.GramState`); the decisions are
-        the same.
-        """
+        """Select and fit one target; returns its coefficient row and intercept."""
         n_eff = float(w.sum())
         sw = np.sqrt(w)
         # The target in units of its largest magnitude (an exact power of two):
@@ -556,12 +537,8 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         yt = y * y_scale
 
         def make_state():
-            if moments is not None:
-                return GramState(
-                    moments, target, screen, n_eff, self.tolerance, 1.0 / y_scale
-                )
-            return IncrementalQR(
-                x, sw, yt * sw, screen, n_eff, self.tolerance, y_unit=1.0 / y_scale
+            return selection_state(
+                moments, target, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
             )
 
         state, result, steps_history, rule = self._select(
