@@ -29,7 +29,6 @@ import pysindy as ps
 from scipy.integrate import solve_ivp
 
 from pysindy_mme.optimizers import FloatingFStepwise
-from pysindy_mme.optimizers import moments as _moments
 
 DT = 0.002
 NOISE = 0.01
@@ -87,6 +86,8 @@ def describe(model) -> str:
 
 def _direct():
     """FloatingFStepwise with the moments switched off (selection on the data)."""
+    # Imported here so that the script also times versions without moments.
+    from pysindy_mme.optimizers import moments as _moments
 
     class _Direct(FloatingFStepwise):
         def fit(self, x_, y, **kwargs):
