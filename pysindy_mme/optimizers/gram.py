@@ -9,9 +9,11 @@ residual's lag-1 autocorrelation, coefficients) from
 rows. Same statistics, same formulas, so the same decisions (up to
 rounding; ``tests/optimizers/test_gram.py``).
 
-Coordinates: a vector ``U a`` of the data (``U = Z R^-1``, orthonormal; see
-:mod:`.moments`) is represented by ``a``. For a model ``S`` (the constant and
-the support), the QR factorisation ``R[:, S] = G [T; 0]`` splits these
+Coordinates: a vector ``U a`` of the data (``U`` has orthonormal columns
+for the library and the target; see :mod:`.moments`) is represented by
+``a``. With ``R_t`` the target's triangular factor
+(:meth:`~.moments.LibraryMoments.target_factor`) and a model ``S`` (the
+constant and the support), the QR factorisation ``R_t[:, S] = G [T; 0]`` splits these
 coordinates into the model's span (``G[:, :k+1]``) and its orthogonal
 complement (``G[:, k+1:]``); a column's or the target's complement
 coordinates are its residual against the model.
@@ -41,7 +43,7 @@ def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scal
 
     ``yw``: the weighted target in its power-of-two units (``y_scale``).
     """
-    if moments is not None:
+    if moments is not None and moments.usable[target]:
         return GramState(moments, target, screen, n_eff, tolerance, 1.0 / y_scale)
     return IncrementalQR(x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale)
 
@@ -74,6 +76,7 @@ class GramState:
     ):
         self.moments = moments
         self.y_col = moments.target_column(target)
+        self.Rt = moments.target_factor(target)
         self.scale = screen.scale
         self.y_unit = y_unit
         self.carrier = screen.carrier
@@ -84,7 +87,7 @@ class GramState:
         self.tol2 = tolerance**2
         self.support = []
         self.in_model = np.zeros(screen.eligible.size, dtype=bool)
-        ry = moments.R[:, self.y_col]
+        ry = self.Rt[:, -1]
         self.floor2 = (EXACT_FIT_RTOL * float(np.linalg.norm(ry))) ** 2
         self._update()
         self.sst = self.sse()
@@ -101,12 +104,12 @@ class GramState:
         span, ``ey`` its residual and ``xp`` every eligible column's residual
         against the model, in complement coordinates.
         """
-        mo = self.moments
-        cols = [0] + [int(mo.position[j]) for j in support]
+        rt = self.Rt
+        cols = [0] + [int(self.moments.position[j]) for j in support]
         k1 = len(cols)
-        G, Ts = np.linalg.qr(mo.R[:, cols], mode="complete")
-        wy = G.T @ mo.R[:, self.y_col]
-        xp = G[:, k1:].T @ mo.R[:, 1 : 1 + mo.columns.size]
+        G, Ts = np.linalg.qr(rt[:, cols], mode="complete")
+        wy = G.T @ rt[:, -1]
+        xp = G[:, k1:].T @ rt[:, 1:-1]
         return G, Ts[:k1], wy[:k1], wy[k1:], xp
 
     def _update(self):
@@ -131,9 +134,16 @@ class GramState:
         self.in_model[j] = False
         self._update()
 
+    def _embed(self, local: np.ndarray) -> np.ndarray:
+        """``U``-coordinates of vectors in the target's coordinates (``Rt``'s)."""
+        out = np.zeros((self.moments.R.shape[0],) + local.shape[1:])
+        out[: local.shape[0] - 1] = local[:-1]
+        out[self.y_col] = local[-1]
+        return out
+
     def _full(self, complement: np.ndarray) -> np.ndarray:
         """``U``-coordinates of vectors given in complement coordinates."""
-        return self.G[:, self.k + 1 :] @ complement
+        return self._embed(self.G[:, self.k + 1 :] @ complement)
 
     # ------------------------------------------------------ classic statistics
     def sse(self) -> float:
@@ -227,7 +237,7 @@ class GramState:
         k1 = self.k + 1
         tinv = self._tinv()
         beta = tinv @ self.z
-        c = self.G[:, :k1] @ tinv.T
+        c = self._embed(self.G[:, :k1] @ tinv.T)
         var = self._long_run_variance(c, self._full(self.ey)[:, None])
         var *= small_sample_factor(self.moments.n_rows, k1)
         return safe_ratio(beta**2, var)
@@ -279,10 +289,11 @@ class GramState:
 
     # ------------------------------------------------------- the final table
     def pseudo_rows(self, cols):
-        """``m`` weighted rows with the inner products of the data's.
+        """A few weighted rows with the inner products of the data's.
 
         Returns ``(x, y, w)``: columns ``cols`` of the library (in their
-        power-of-two units) and the scaled target on ``m`` rows of equal
+        power-of-two units) and the scaled target on the rows of ``R_t`` (one
+        per column of the library, plus one), of equal
         weight, whose weighted cross-products (constant included) are those
         of all the data's rows, and ``sum(w) = n_eff``. Least squares, ANOVA
         tables and partial F-ratios of entry (:func:`~.anova.fit_anova`)
@@ -290,7 +301,7 @@ class GramState:
         reflection maps the constant's column of ``R``, ``||sqrt(w)|| e_1``,
         to a constant vector.)
         """
-        R = self.moments.R
+        R = self.Rt
         m = R.shape[0]
         a = R[:, 0]
         t = np.full(m, a[0] / np.sqrt(m))
@@ -300,7 +311,7 @@ class GramState:
         w = np.full(m, self.n_eff / m)
         sw = np.sqrt(w)
         pos = self.moments.position[np.asarray(cols, dtype=int)]
-        return rows[:, pos] / sw[:, None], rows[:, self.y_col] / sw, w
+        return rows[:, pos] / sw[:, None], rows[:, -1] / sw, w
 
     def table_statistics(self, support, candidates, lags: int) -> dict:
         """Robust statistics of the model ``support`` (in that order).
@@ -314,15 +325,15 @@ class GramState:
         k1 = T.shape[0]
         tinv = self._tinv(T)
         beta = tinv @ z
-        e = G[:, k1:] @ ey
-        c = G[:, :k1] @ tinv.T
+        e = self._embed(G[:, k1:] @ ey)
+        c = self._embed(G[:, :k1] @ tinv.T)
         var = self._long_run_variance(c, e[:, None]) * small_sample_factor(n, k1)
         out = np.zeros(len(candidates))
         if len(candidates):
             rp = xp[:, self.moments.position[np.asarray(candidates, dtype=int)] - 1]
             g = rp.T @ ey
             b = safe_ratio(g, np.einsum("ij,ij->j", rp, rp))
-            r = G[:, k1:] @ rp
+            r = self._embed(G[:, k1:] @ rp)
             v = self._long_run_variance(r, e[:, None] - r * b)
             out = safe_ratio(g**2, v * small_sample_factor(n, k1 + 1))
         ee = float(ey @ ey)

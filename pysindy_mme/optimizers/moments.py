@@ -9,7 +9,8 @@ matrices that two passes over the data compute once for every target:
   power-of-two units). The least-squares fit of any target on any subset of
   columns, hence every classic partial F-ratio, follows from ``R`` alone
   (``R^T R = Z^T Z``, and a QR factor is as accurate as a QR of the data).
-* With ``U = Z R^-1`` (orthonormal columns), every vector the selection
+* With ``U`` the library's columns orthonormalised and, for each target,
+  its part orthogonal to the library normalised, every vector the selection
   forms (a model's residual, a candidate's part orthogonal to the model,
   the rows of a model's pseudo-inverse) is ``U a`` for a small coefficient
   vector ``a``. A Newey-West score is a product of two such vectors,
@@ -74,6 +75,12 @@ class LibraryMoments:
     ----------
     R : ndarray (m, m)
         Upper triangular factor of ``Z = sqrt(w) [1, X[:, columns], Y]``.
+    target_norms : ndarray (n_targets,)
+        Norm of each target's part orthogonal to the library.
+    usable : ndarray of bool (n_targets,)
+        Whether that part is large enough for the target to be selected from
+        the moments (not where the target is in the library's span to within
+        ``1 / MAX_CONDITION``, e.g. noise-free: its columns of ``U`` are 0).
     columns : ndarray of int (m_x,)
         Library column of each of ``Z``'s columns ``1 .. m_x``.
     position : ndarray of int (n_features,)
@@ -92,6 +99,8 @@ class LibraryMoments:
     """
 
     R: np.ndarray
+    target_norms: np.ndarray
+    usable: np.ndarray
     columns: np.ndarray
     position: np.ndarray
     n_rows: int
@@ -102,7 +111,21 @@ class LibraryMoments:
     bartlett_linear: np.ndarray | None
 
     def target_column(self, target: int) -> int:
+        """Column of ``Z`` (and ``U``) that holds ``target``."""
         return 1 + self.columns.size + int(target)
+
+    def target_factor(self, target: int) -> np.ndarray:
+        """Triangular factor of ``[1, X, y_target]`` in the columns of ``U``.
+
+        ``[1, X, y] = [U_x, u_target] R_t``: the library's factor, the
+        target's coordinates on the library's columns and its own norm.
+        """
+        mx = 1 + self.columns.size
+        rt = np.zeros((mx + 1, mx + 1))
+        rt[:mx, :mx] = self.R[:mx, :mx]
+        rt[:mx, mx] = self.R[:mx, self.target_column(target)]
+        rt[mx, mx] = self.target_norms[target]
+        return rt
 
 
 def pair_vectors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -169,11 +192,22 @@ def _library_moments(x, sw, y_scaled, screen, lags):
     if R.shape[0] < m:
         return None
     R = R * np.where(np.diag(R) < 0, -1.0, 1.0)[:, None]
-    if not np.linalg.cond(R) < MAX_CONDITION:
+    mx = 1 + columns.size
+    if not np.linalg.cond(R[:mx, :mx]) < MAX_CONDITION:
         return None
-    # Pass 2: U = Z R^-1 block by block, its lag-0/1 Gram matrices and the
+    # U: the library orthonormalised, then each target's part orthogonal to
+    # the library, normalised (targets need not be independent of each other:
+    # a target's vectors only use the library's columns and its own).
+    rho = np.linalg.norm(R[mx:, mx:], axis=0)
+    usable = rho > np.linalg.norm(R[:, mx:], axis=0) / MAX_CONDITION
+    rinv = np.eye(m)
+    rinv[:mx, :mx] = scipy.linalg.solve_triangular(R[:mx, :mx], np.eye(mx))
+    for t in np.flatnonzero(usable):
+        rinv[:mx, mx + t] = -(rinv[:mx, :mx] @ R[:mx, mx + t]) / rho[t]
+        rinv[mx + t, mx + t] = 1.0 / rho[t]
+    rinv[:, mx:][:, ~usable] = 0.0
+    # Pass 2: U = Z rinv block by block, its lag-0/1 Gram matrices and the
     # Bartlett moments of its pair products.
-    rinv = scipy.linalg.solve_triangular(R, np.eye(m))
     lag0 = np.zeros((m, m))
     lag1 = np.zeros((m, m))
     i, j = np.triu_indices(m)
@@ -207,6 +241,8 @@ def _library_moments(x, sw, y_scaled, screen, lags):
     position[columns] = 1 + np.arange(columns.size)
     return LibraryMoments(
         R=R,
+        target_norms=rho,
+        usable=usable,
         columns=columns,
         position=position,
         n_rows=int(x.shape[0]),

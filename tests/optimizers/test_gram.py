@@ -187,7 +187,23 @@ def test_ill_conditioned_falls_back(monkeypatch):
     opt = FloatingFStepwise().fit(X, y)
     np.testing.assert_allclose(opt.coef_[0], [0, 1, 0, -2], atol=1e-12)
     screen = screen_columns(X, np.ones(500), 500.0, 1e-8)
-    assert library_moments(X, np.ones(500), y[:, None], screen, 3) is None
+    mo = library_moments(X, np.ones(500), y[:, None], screen, 3)
+    assert not mo.usable[0]
+
+
+def test_an_exact_target_beside_noisy_ones(monkeypatch):
+    # Targets may depend on each other; a noise-free one is selected on the
+    # data, the others from the moments, with the same decisions.
+    theta, dx = _problem("lorenz", seed=4)
+    exact = theta[:, 1] - 0.5 * theta[:, 5]
+    y = np.column_stack([dx, exact, dx[:, 0] + dx[:, 1]])
+    a = _fit(monkeypatch, "gram", FloatingFStepwise, theta, y)
+    b = _fit(monkeypatch, "direct", FloatingFStepwise, theta, y)
+    _assert_same(a, b)
+    mo = library_moments(
+        theta, np.ones(len(y)), y, screen_columns(theta, np.ones(len(y)), len(y), 1e-8)
+    )
+    np.testing.assert_array_equal(mo.usable, [True, True, True, False, True])
 
 
 def test_use_moments():
