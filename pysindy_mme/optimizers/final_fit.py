@@ -2,7 +2,10 @@
 
 After selection, the chosen model is described from scratch by a direct QR
 least-squares fit (:func:`~.anova.fit_anova`), independent of the incremental
-computations; the constant is then kept or dropped.
+computations; the constant is then kept or dropped. For a tall, narrow
+library (:class:`~.gram.GramState`) the same fit runs on ``m`` weighted
+rows with the data's cross-products (:meth:`~.gram.GramState.pseudo_rows`),
+and the robust statistics come from the library's moments.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from .anova import f_pvalue, fit_anova, lstsq_refined
+from .gram import GramState
 from .incremental_qr import IncrementalQR
 from .robust import robust_table_statistics
 from .screening import Screen
@@ -58,7 +62,10 @@ def final_fit(
         top = [int(i) for i in order]
     k = support.size
     cols = np.concatenate([support, np.asarray(top, dtype=int)])
-    xs = x[:, cols] * screen.scale[cols]
+    if isinstance(state, GramState):
+        xs, y, w = state.pseudo_rows(cols)
+    else:
+        xs = x[:, cols] * screen.scale[cols]
     table = fit_anova(
         xs,
         y,
@@ -85,7 +92,7 @@ def final_fit(
         return float(units(value, y_unit, y_unit))
 
     if rule.robust:
-        table = _with_robust_statistics(table, xs, y, w, k, rule)
+        table = _with_robust_statistics(table, state, cols, xs, y, w, rule)
     table = replace(
         table,
         n_candidates=rule.family_size(k),
@@ -132,13 +139,21 @@ def final_fit(
     return row, icpt, table, dropped, significant_lost
 
 
-def _with_robust_statistics(table, xs, y, w, k: int, rule):
-    """``table`` with the robust (Newey-West) statistics filled in."""
-    sw = np.sqrt(w)
-    design = np.column_stack([sw, xs[:, :k] * sw[:, None]])
+def _with_robust_statistics(table, state, cols, xs, y, w, rule):
+    """``table`` with the robust (Newey-West) statistics filled in.
+
+    ``cols``: the library columns of ``xs`` (the support, then the reported
+    candidates).
+    """
+    k = len(table.features)
     assessed = np.isfinite(table.out_partial_f)
-    cand = xs[:, k:][:, assessed] * sw[:, None]
-    stats = robust_table_statistics(design, y * sw, cand, rule.lags)
+    if isinstance(state, GramState):
+        stats = state.table_statistics(cols[:k], cols[k:][assessed], rule.lags)
+    else:
+        sw = np.sqrt(w)
+        design = np.column_stack([sw, xs[:, :k] * sw[:, None]])
+        cand = xs[:, k:][:, assessed] * sw[:, None]
+        stats = robust_table_statistics(design, y * sw, cand, rule.lags)
     out_f = np.full(table.out_partial_f.shape, np.nan)
     out_f[assessed] = stats["out"]
     dof = table.dof_residual

@@ -14,6 +14,13 @@ import scipy.linalg
 from scipy.linalg.lapack import dtrtri
 
 from ._numeric import EPS, safe_ratio
+from .robust import (
+    classic_joint_f,
+    lag1_autocorrelation,
+    robust_candidate_f,
+    robust_in_model_f,
+    robust_joint_f,
+)
 from .screening import Screen, xt
 
 __all__ = ["IncrementalQR"]
@@ -256,3 +263,22 @@ class IncrementalQR:
         self.nr2 = self.nr2 + cu**2
         self.nr2[self.in_model] = 0.0
         self.g[self.in_model] = 0.0
+
+    # Statistics the rules ask the state for (a GramState computes them from
+    # the library's moments instead).
+    def residual_lag1(self) -> float:
+        return lag1_autocorrelation(self.e)
+
+    def robust_in_model_f(self, lags: int) -> np.ndarray:
+        return robust_in_model_f(self, lags)
+
+    def robust_candidate_f(self, lags: int, classic_f: np.ndarray) -> np.ndarray:
+        return robust_candidate_f(self, lags, classic_f)
+
+    def joint_f(self, cols, lags=None) -> float:
+        """F-ratio of adding all of ``cols`` together (``lags``: Newey-West)."""
+        r = self.residualised(cols)
+        if lags is not None:
+            return robust_joint_f(r, self.e, lags, self.k + 1)
+        dof = self.n_eff - self.k - len(cols) - 1
+        return classic_joint_f(r, self.e, self.sse(), self.floor2, dof)

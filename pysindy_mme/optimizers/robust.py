@@ -48,6 +48,8 @@ import scipy.linalg
 from ._numeric import safe_ratio
 
 __all__ = [
+    "BartlettWindows",
+    "classic_joint_f",
     "lag1_autocorrelation",
     "long_run_covariance",
     "long_run_variance",
@@ -57,6 +59,7 @@ __all__ = [
     "robust_in_model_f",
     "robust_table_statistics",
     "rows_look_time_ordered",
+    "small_sample_factor",
 ]
 
 # Robust F-ratios are computed for this many candidates, those with the
@@ -73,35 +76,90 @@ def newey_west_lags(n: float) -> int:
     return int(np.floor(4.0 * (max(float(n), 1.0) / 100.0) ** (2.0 / 9.0)))
 
 
-def _bartlett(lags: int, n: int):
-    """``(k, weight)`` of the Bartlett kernel for lags ``1..min(lags, n - 1)``."""
-    return [(k, 1.0 - k / (lags + 1.0)) for k in range(1, min(lags, n - 1) + 1)]
+# Window sums are formed from cumulative sums over blocks of this many rows:
+# their rounding error is about eps * WINDOW_ROWS * max |u|.
+WINDOW_ROWS = 4096
 
 
-def long_run_variance(u: np.ndarray, lags: int) -> np.ndarray:
-    """Bartlett-weighted sum of autocovariances of each column of ``u``.
+class BartlettWindows:
+    """Sums of ``lags + 1`` consecutive rows, fed one block of rows at a time.
 
-    ``sum_{|k| <= lags} (1 - |k| / (lags + 1)) sum_t u[t] u[t + k]``
-    (not centred: under the null hypothesis the scores have mean zero).
+    The Bartlett kernel is the autocorrelation of a box: with ``u`` padded by
+    zeros and ``B_s = u[s - lags] + ... + u[s]`` for every ``s`` whose window
+    meets the data,
+
+        ``sum_s B_s B_s^T = (lags + 1) sum_{|k| <= lags} (1 - |k| / (lags + 1))
+        sum_t u[t] u[t + k]^T``,
+
+    so a Newey-West long-run covariance is one Gram matrix of window sums,
+    ``O(n m^2)``, instead of one product per lag, ``O(n m^2 lags)``. Each block
+    of window sums comes from a cumulative sum over that block only (plus the
+    ``lags`` rows before it), so rounding does not grow with the record.
     """
-    u = np.asarray(u, dtype=float)
-    if u.ndim == 1:
-        return long_run_variance(u[:, None], lags)[0]
-    out = np.einsum("ij,ij->j", u, u)
-    for k, weight in _bartlett(lags, u.shape[0]):
-        out = out + 2.0 * weight * np.einsum("ij,ij->j", u[:-k], u[k:])
-    # Bartlett weights make the estimate non-negative in exact arithmetic;
-    # rounding can leave a tiny negative value.
-    return np.maximum(out, 0.0)
+
+    def __init__(self, lags: int, width: int):
+        self.lags = int(lags)
+        self.carry = np.zeros((self.lags, width))  # the last ``lags`` rows seen
+
+    def feed(self, block: np.ndarray) -> np.ndarray:
+        """Window sums ending at each row of ``block`` (``block.shape`` rows)."""
+        b, lags = block.shape[0], self.lags
+        # Cumulative sums run down columns: column-major is several times
+        # faster than row-major here.
+        cs = np.empty((lags + b + 1, block.shape[1]), order="F")
+        cs[0] = 0.0
+        cs[1 : lags + 1] = self.carry
+        cs[lags + 1 :] = block
+        if lags:
+            self.carry = cs[-lags:].copy() if b >= lags else cs[b + 1 :].copy()
+        np.cumsum(cs[1:], axis=0, out=cs[1:])
+        return cs[lags + 1 :] - cs[:b]
+
+    def tail(self) -> np.ndarray:
+        """Window sums ending past the last row (``lags`` rows of them)."""
+        # The window ending i rows after the last holds carry[i - 1:].
+        return np.cumsum(self.carry[::-1], axis=0)[::-1]
 
 
 def long_run_covariance(u: np.ndarray, lags: int) -> np.ndarray:
-    """The whole matrix whose diagonal :func:`long_run_variance` gives."""
-    out = u.T @ u
-    for k, weight in _bartlett(lags, u.shape[0]):
-        gamma = u[k:].T @ u[:-k]
-        out += weight * (gamma + gamma.T)
-    return out
+    """Bartlett-weighted sum of the lagged cross-products of the columns of ``u``.
+
+    ``sum_{|k| <= lags} (1 - |k| / (lags + 1)) sum_t u[t] u[t + k]^T``
+    (not centred: under the null hypothesis the scores have mean zero),
+    computed from window sums (:class:`BartlettWindows`), in row blocks.
+    """
+    u = np.asarray(u, dtype=float)
+    n, m = u.shape
+    windows = BartlettWindows(lags, m)
+    out = np.zeros((m, m))
+    if windows.lags == 0:
+        return u.T @ u
+    for start in range(0, n, WINDOW_ROWS):
+        b = windows.feed(u[start : start + WINDOW_ROWS])
+        out += b.T @ b
+    b = windows.tail()
+    out += b.T @ b
+    return out / (windows.lags + 1.0)
+
+
+def long_run_variance(u: np.ndarray, lags: int) -> np.ndarray:
+    """The diagonal of :func:`long_run_covariance`: one value per column of ``u``."""
+    u = np.asarray(u, dtype=float)
+    if u.ndim == 1:
+        return long_run_variance(u[:, None], lags)[0]
+    n, m = u.shape
+    windows = BartlettWindows(lags, m)
+    out = np.zeros(m)
+    if windows.lags == 0:
+        return np.einsum("ij,ij->j", u, u)
+    for start in range(0, n, WINDOW_ROWS):
+        b = windows.feed(u[start : start + WINDOW_ROWS])
+        out += np.einsum("ij,ij->j", b, b)
+    b = windows.tail()
+    out += np.einsum("ij,ij->j", b, b)
+    # Bartlett weights make the estimate non-negative in exact arithmetic
+    # (it is a sum of squares here, so in rounding too).
+    return out / (windows.lags + 1.0)
 
 
 def lag1_autocorrelation(e: np.ndarray) -> float:
@@ -155,7 +213,7 @@ def rows_look_time_ordered(x, eligible) -> bool:
     return bool(np.median(values) >= TIME_ORDER_LAG1)
 
 
-def _small_sample(n: int, n_params: int) -> float:
+def small_sample_factor(n: int, n_params: int) -> float:
     """``n / (n - p)``: the HC1 factor, so that white residuals give the classic F."""
     return n / max(n - n_params, 1)
 
@@ -172,7 +230,7 @@ def robust_in_model_f(state, lags: int) -> np.ndarray:
     beta = tinv @ state.z
     c = state.Q[:, :k1] @ tinv.T
     var = long_run_variance(c * state.e[:, None], lags)
-    var *= _small_sample(state.e.size, k1)
+    var *= small_sample_factor(state.e.size, k1)
     return safe_ratio(beta**2, var)
 
 
@@ -188,10 +246,27 @@ def robust_joint_f(r: np.ndarray, e: np.ndarray, lags: int, n_model: int) -> flo
     q = r.shape[1]
     b, *_ = np.linalg.lstsq(r, e, rcond=None)
     cov = long_run_covariance(r * (e - r @ b)[:, None], lags)
-    cov *= _small_sample(e.size, n_model + q)
+    cov *= small_sample_factor(e.size, n_model + q)
     g = r.T @ e
     w = np.linalg.lstsq(cov, g, rcond=None)[0]
     return float(g @ w) / q
+
+
+def classic_joint_f(r, e, sse: float, floor2: float, dof: float) -> float:
+    """Classic F-ratio of adding all columns of ``r`` (residualised) to a model.
+
+    ``e`` is the model's residual and ``sse`` its sum of squares; the
+    columns' fitted reduction over ``q`` against the rest over ``dof``
+    (``inf`` when the rest is at rounding level, below ``floor2``). Only inner
+    products are read, so ``r`` and ``e`` may be given in any orthonormal
+    coordinates.
+    """
+    q = r.shape[1]
+    sol, *_ = np.linalg.lstsq(r, e, rcond=None)
+    fitted = r @ sol
+    reduction = min(float(fitted @ fitted), sse)
+    rest = max(sse - reduction, 0.0)
+    return np.inf if rest <= floor2 else (reduction / q) / (rest / dof)
 
 
 def robust_candidate_f(state, lags: int, classic_f: np.ndarray) -> np.ndarray:
@@ -215,7 +290,7 @@ def robust_candidate_f(state, lags: int, classic_f: np.ndarray) -> np.ndarray:
     g = r.T @ state.e
     b = safe_ratio(g, nr2)
     var = long_run_variance(r * (state.e[:, None] - r * b), lags)
-    var *= _small_sample(state.e.size, state.k + 2)
+    var *= small_sample_factor(state.e.size, state.k + 2)
     out[idx] = safe_ratio(g**2, var)
     return out
 
@@ -250,7 +325,7 @@ def robust_table_statistics(design, yw, candidates, lags: int) -> dict:
     e = yw - design @ beta
     rinv = scipy.linalg.solve_triangular(r, np.eye(p))
     c = q @ rinv.T
-    var = long_run_variance(c * e[:, None], lags) * _small_sample(n, p)
+    var = long_run_variance(c * e[:, None], lags) * small_sample_factor(n, p)
     in_model = safe_ratio(beta**2, var)
     out = np.zeros(candidates.shape[1])
     if candidates.shape[1]:
@@ -259,7 +334,7 @@ def robust_table_statistics(design, yw, candidates, lags: int) -> dict:
         g = rc.T @ e
         b = safe_ratio(g, np.einsum("ij,ij->j", rc, rc))
         v = long_run_variance(rc * (e[:, None] - rc * b), lags)
-        out = safe_ratio(g**2, v * _small_sample(n, p + 1))
+        out = safe_ratio(g**2, v * small_sample_factor(n, p + 1))
     ee = float(e @ e)
     lrv = float(long_run_variance(e, lags))
     return dict(

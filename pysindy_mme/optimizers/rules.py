@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .anova import f_critical
-from .robust import newey_west_lags, robust_candidate_f, robust_in_model_f
+from .robust import newey_west_lags
 
 __all__ = [
     "MIN_EFFECT",
@@ -155,13 +155,13 @@ class FamilywiseRule:
     def in_model_f(self, state) -> np.ndarray:
         if not self.robust:
             return state.in_model_f()[1:]
-        return robust_in_model_f(state, self.lags)[1:]
+        return state.robust_in_model_f(self.lags)[1:]
 
     def candidate_f(self, state) -> np.ndarray:
         classic = state.candidate_f()
         if not self.robust:
             return classic
-        return robust_candidate_f(state, self.lags, classic)
+        return state.robust_candidate_f(self.lags, classic)
 
     def relevant_in_model(self, state) -> np.ndarray:
         """Whether each function in the model has f^2 >= ``MIN_EFFECT``."""

@@ -53,8 +53,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from .robust import lag1_autocorrelation, robust_joint_f
-
 __all__ = [
     "AUTO_LAG1",
     "JOINT_MAX_CANDIDATES",
@@ -256,7 +254,7 @@ def engage_phase_two(state, floating, threshold: float = AUTO_LAG1) -> bool:
         return bool(floating)
     if not state.k or state.exact_fit():
         return False
-    return lag1_autocorrelation(state.e) > threshold
+    return state.residual_lag1() > threshold
 
 
 def joint_test(state, rule):
@@ -276,15 +274,7 @@ def joint_test(state, rule):
     dof = state.n_eff - k - q - 1
     if q < 2 or q > JOINT_MAX_CANDIDATES or dof < 10 * (k + q + 1):
         return None
-    r = state.residualised(cols)
-    if rule.robust:
-        f = robust_joint_f(r, state.e, rule.lags, k + 1)
-    else:
-        sol, *_ = np.linalg.lstsq(r, state.e, rcond=None)
-        fitted = r @ sol
-        reduction = min(float(fitted @ fitted), state.sse())
-        rest = max(state.sse() - reduction, 0.0)
-        f = np.inf if rest <= state.floor2 else (reduction / q) / (rest / dof)
+    f = state.joint_f(cols, rule.lags if rule.robust else None)
     p = float(stats.f.sf(f, q, dof))
     return cols, float(f), p, float(stats.f.isf(rule.joint_alpha, q, dof))
 
@@ -469,7 +459,7 @@ def select(
                     continue
         if action is None:
             if phase == 1:
-                out.phase_one_lag1 = lag1_autocorrelation(state.e)
+                out.phase_one_lag1 = state.residual_lag1()
                 if engage_phase_two(state, floating):
                     phase = 2
                     out.phase_two = True

@@ -9,10 +9,8 @@ incremental QR state (:mod:`.incremental_qr`), and describes the chosen
 model by a direct least-squares fit and its ANOVA table (:mod:`.final_fit`,
 :mod:`.anova`).
 
-The selection never refits the model per candidate: adding a function costs
-one pass over the library (``O(n_samples * n_candidates)``), removing one
-``O(n_samples * k^2 + k^2 * n_candidates)`` for ``k`` functions in the model.
-The library is never copied.
+No refit per candidate: an addition costs one pass over the library; a tall,
+narrow library is selected from moments of two passes (:mod:`.moments`).
 
 Units: partial F-ratios do not depend on the scale of a column or of the
 target, but sums of squares of values near ``1e+-154`` overflow or underflow.
@@ -36,7 +34,8 @@ from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_param
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
 from .final_fit import final_fit
-from .incremental_qr import IncrementalQR
+from .gram import selection_state
+from .moments import tall_moments
 from .robust import rows_look_time_ordered
 from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
 from .screening import Screen, screen_columns
@@ -436,6 +435,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             )
 
         n_targets = y.shape[1]
+        moments = tall_moments(x, w, y, screen, rule.lags if rule.robust else None)
         coef = np.zeros((n_targets, n_features))
         intercept = np.zeros(n_targets)
         self.history_ = [coef.copy()]
@@ -451,7 +451,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         lost = []
         for t in range(n_targets):
             coef[t], intercept[t], significant_lost = self._fit_target(
-                x, y[:, t], w, screen, rule, t, coef
+                x, y[:, t], w, screen, rule, t, coef, moments
             )
             self.history_.append(coef.copy())
             if significant_lost:
@@ -527,7 +527,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """The paper's Phase I rule, for a strongly autocorrelated residual."""
         return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
 
-    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef):
+    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef, moments):
         """Select and fit one target; returns its coefficient row and intercept."""
         n_eff = float(w.sum())
         sw = np.sqrt(w)
@@ -537,8 +537,8 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         yt = y * y_scale
 
         def make_state():
-            return IncrementalQR(
-                x, sw, yt * sw, screen, n_eff, self.tolerance, y_unit=1.0 / y_scale
+            return selection_state(
+                moments, target, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
             )
 
         state, result, steps_history, rule = self._select(
