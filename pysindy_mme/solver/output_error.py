@@ -52,7 +52,7 @@ from scipy import stats
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel
 from ..exceptions import DivergenceError
-from .kkt import BandedKKT, equilibrated_inverse, solve_reduced, undetermined
+from .kkt import equilibrated_inverse, solve_reduced, undetermined
 from .statistics import residual_inflation
 from .transcription import MMESmoother
 
@@ -312,12 +312,6 @@ class OutputErrorModel:
         self.n_residuals = int(np.isfinite(self.y).sum())
         #: variance inflation of the measurement noise (None: each fit's own)
         self.noise_inflation = None
-        # One banded KKT buffer for every fit of this record: a trial fit's
-        # solver keeps its buffer as long as the fit lives (the statistics
-        # refactorise), and a fresh O(N) buffer per fit was most of the
-        # memory of the confirmation stage. Every use factorises right
-        # before it solves, so sharing is safe (see kkt.BandedKKT).
-        self._kkt = None
 
     # ----------------------------------------------------------------- setup
     def _solver(self, slots, theta0, max_iter, tol, x_start=None):
@@ -334,7 +328,7 @@ class OutputErrorModel:
         if self.n_offsets:
             offsets = np.zeros((m, model.n_params))
             offsets[:, model.n_params - self.n_offsets :] = np.eye(m)
-        solver = MMESmoother(
+        return MMESmoother(
             model,
             self.y,
             self.t,
@@ -353,10 +347,6 @@ class OutputErrorModel:
             # from the starting trajectory (and the model at theta0)
             x_init=x_start,
         )
-        if self._kkt is None:
-            self._kkt = BandedKKT(solver.N, solver.n, solver.breaks)
-        solver._kkt = self._kkt
-        return solver
 
     def _theta_bounds(self, p):
         """Bounds on all of ``theta`` (p, 2): the physical ones, then none."""
