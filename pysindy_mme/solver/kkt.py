@@ -34,6 +34,7 @@ scale (coefficients from 1e-4 to 1e6 in one model) are handled alike.
 
 from __future__ import annotations
 
+import threading
 import weakref
 from dataclasses import dataclass
 
@@ -55,6 +56,8 @@ CHUNK = 1 << 15
 # factorisation of that size (most recent last; at most _IDLE_MAX kept).
 _IDLE: dict = {}
 _IDLE_MAX = 2
+# factors may die in any thread (studies run in threads by a scheduler)
+_IDLE_LOCK = threading.Lock()
 
 
 def _take_band(shape) -> np.ndarray:
@@ -63,16 +66,18 @@ def _take_band(shape) -> np.ndarray:
     The buffer belongs to the factor made in it until that factor is garbage
     (:func:`_give_back`), so two live factors never share memory.
     """
-    band = _IDLE.pop(shape, None)
+    with _IDLE_LOCK:
+        band = _IDLE.pop(shape, None)
     return np.empty(shape) if band is None else band
 
 
 def _give_back(shape, band) -> None:
     """Keep the buffer of a dead factor for the next factorisation."""
-    _IDLE.pop(shape, None)
-    _IDLE[shape] = band
-    while len(_IDLE) > _IDLE_MAX:
-        _IDLE.pop(next(iter(_IDLE)))
+    with _IDLE_LOCK:
+        _IDLE.pop(shape, None)
+        _IDLE[shape] = band
+        while len(_IDLE) > _IDLE_MAX:
+            _IDLE.pop(next(iter(_IDLE)))
 
 
 @dataclass
