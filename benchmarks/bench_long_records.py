@@ -1,22 +1,33 @@
-"""The study at the length of real measurements (issue 9).
+"""The study at the length of real measurements (issues 9 and 20).
 
 The paper's Van der Pol case (x1 measured, noise variance 0.01, ignorance
 model, ``PolynomialLibrary(3)``) at 40 Hz over 10, 100, 1,000 and 10,000 s
 (401 to 400,001 samples; and 2,500 s: 100,001 samples), and over 10 s at
-40 Hz to 40 kHz. For every record
-length: the whole ``discover`` time and, on the same data in the same run,
-MME alone; peak memory of one study (``tracemalloc``: numpy allocations);
-exact terms (seeds: 20 up to 4,001 samples, 5 beyond); the median largest
-coefficient error over the exact seeds.
+40 Hz to 40 kHz; with ``--large`` also 10^6 samples, over 25,000 s at 40 Hz
+and over 10 s at 100 kHz (issue 20). For every record length: the whole
+``discover`` time and, on the same data in the same run, MME alone; exact
+terms (seeds: 20 up to 4,001 samples, 5 beyond, 1 at 10^6 samples: a study
+there takes minutes); the median largest coefficient error over the exact
+seeds; peak memory: ``tracemalloc`` (numpy allocations of one study) and
+the peak resident set of the row's process (``ru_maxrss``), per sample.
+
+Every row runs in a process of its own, so that one row's peak resident set
+is not an earlier row's (the interpreter keeps the pages it once had).
 
 Run: ``python benchmarks/bench_long_records.py`` (about 15 minutes on 2
-cores; ``--quick`` for the first three rows only). Prints a markdown table
-and the targets of issue 9.
+cores; ``--quick`` for the first three rows only; ``--large`` adds the two
+10^6-sample rows, about 15 minutes more; ``--only N ...`` runs the rows of
+those sample counts). Prints a markdown table and the targets of issues 9
+and 20.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import resource
+import subprocess
+import sys
 import time
 import tracemalloc
 import warnings
@@ -38,6 +49,9 @@ CASES = [  # (seconds, Hz)
     (10_000, 40),
     (10, 40_000),
 ]
+#: issue 20: 10^6 samples, over many periods and at a high rate
+#: (and 10 s at 10 kHz: the 10^5 samples the 100 kHz row's growth is from)
+LARGE = [(10, 10_000), (25_000, 40), (10, 100_000)]
 
 
 def study(y, t, system):
@@ -61,34 +75,44 @@ def mme_alone(y, t, system):
 
 
 def timed(fn):
-    start = time.perf_counter()
+    """``(result, wall seconds, CPU seconds of this process)``."""
+    start, cpu = time.perf_counter(), time.process_time()
     out = fn()
-    return out, time.perf_counter() - start
+    return out, time.perf_counter() - start, time.process_time() - cpu
 
 
-def run_case(seconds, rate, n_seeds):
+def run_case(seconds, rate, n_seeds, trace=True):
+    """One row, in this process: times, exact terms, peak memory."""
     system = van_der_pol()
     t = system.time(seconds, rate)
-    exact, errors, t_study, t_mme = 0, [], [], []
+    exact, errors, t_study, t_mme, c_study, c_mme = 0, [], [], [], [], []
     for seed in range(n_seeds):
         data = system.measure(seed, t=t)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res, sec = timed(lambda data=data: study(data.y, data.t, system))
-            _, sec_mme = timed(lambda data=data: mme_alone(data.y, data.t, system))
+            res, sec, cpu = timed(lambda data=data: study(data.y, data.t, system))
+            _, sec_mme, cpu_mme = timed(
+                lambda data=data: mme_alone(data.y, data.t, system)
+            )
         t_study.append(sec)
         t_mme.append(sec_mme)
+        c_study.append(cpu)
+        c_mme.append(cpu_mme)
         found = res.terms["x2"]
         if set(found) == set(TRUE):
             exact += 1
             errors.append(max(abs(found[k] - v) for k, v in TRUE.items()))
-    data = system.measure(0, t=t)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        tracemalloc.start()
-        study(data.y, data.t, system)
-        peak = tracemalloc.get_traced_memory()[1] / 2**20
-        tracemalloc.stop()
+    # the resident peak before tracemalloc's own bookkeeping inflates it
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
+    peak = float("nan")
+    if trace:
+        data = system.measure(0, t=t)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tracemalloc.start()
+            study(data.y, data.t, system)
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+            tracemalloc.stop()
     return {
         "seconds": seconds,
         "rate": rate,
@@ -98,35 +122,71 @@ def run_case(seconds, rate, n_seeds):
         "error": float(np.median(errors)) if errors else float("nan"),
         "time": float(np.median(t_study)),
         "mme": float(np.median(t_mme)),
+        # CPU time: on a machine shared with other work the wall-clock
+        # ratio of two runs moves with the load; the CPU-time ratio less
+        "cpu": float(np.median(c_study)),
+        "cpu_mme": float(np.median(c_mme)),
         "peak": peak,
+        "rss": rss / 2**20,
+        "rss_per_sample": rss / t.size,
     }
+
+
+def run_in_subprocess(seconds, rate, n_seeds, trace):
+    """:func:`run_case` in a fresh interpreter (its own peak resident set)."""
+    cmd = [sys.executable, __file__, "--row", str(seconds), str(rate), str(n_seeds)]
+    if not trace:
+        cmd.append("--no-trace")
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="first three rows")
+    parser.add_argument(
+        "--large", action="store_true", help="add the 10^6-sample rows (issue 20)"
+    )
+    parser.add_argument(
+        "--only", type=int, nargs="+", help="run only rows of these sample counts"
+    )
+    parser.add_argument("--row", nargs=3, type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--no-trace", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    cases = CASES[:3] if args.quick else CASES
+    if args.row:  # one row in this process (see run_in_subprocess)
+        seconds, rate, n_seeds = args.row
+        row = run_case(_number(seconds), _number(rate), int(n_seeds), not args.no_trace)
+        print(json.dumps(row))
+        return
+    cases = CASES[:3] if args.quick else CASES + (LARGE if args.large else [])
+    if args.only:
+        cases = [c for c in CASES + LARGE if int(round(c[0] * c[1])) + 1 in args.only]
     rows = []
     for seconds, rate in cases:
         n = int(round(seconds * rate)) + 1
-        row = run_case(seconds, rate, 20 if n <= 4_001 else 5)
+        seeds = 20 if n <= 4_001 else 5 if n < 1_000_000 else 1
+        # tracemalloc doubles a study's time: not at 10^6 samples (the
+        # resident peak is the figure there)
+        row = run_in_subprocess(seconds, rate, seeds, trace=n < 1_000_000)
         rows.append(row)
         print(
             f"{row['n']:>8} samples: {row['time']:.2f} s/study, MME {row['mme']:.2f} s,"
-            f" exact {row['exact']}/{row['seeds']}",
+            f" exact {row['exact']}/{row['seeds']}, peak RSS {row['rss']:.0f} MiB",
             flush=True,
         )
     print(
         "\n| record | samples | exact terms | median largest coef. error | s / study "
-        "| MME alone (s) | study / MME | peak MB |"
+        "| MME alone (s) | study / MME | study / MME (CPU) | peak MB (tracemalloc) "
+        "| peak RSS MB | RSS kB / sample |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(
             f"| {r['seconds']:,} s at {r['rate']:,} Hz | {r['n']:,} | "
             f"{r['exact']}/{r['seeds']} | {r['error']:.4f} | {r['time']:.2f} | "
-            f"{r['mme']:.2f} | {r['time'] / r['mme']:.1f} | {r['peak']:.0f} |"
+            f"{r['mme']:.2f} | {r['time'] / r['mme']:.1f} | "
+            f"{r['cpu'] / r['cpu_mme']:.1f} | {r['peak']:.0f} | "
+            f"{r['rss']:.0f} | {r['rss_per_sample'] / 1024:.2f} |"
         )
     by_n = {r["n"]: r for r in rows}
     print("\nTargets (issue 9):")
@@ -152,6 +212,34 @@ def main(argv=None):
             f"- 100,001 samples: {r['time']:.1f} s (<= 15), "
             f"{r['time'] / r['mme']:.1f}x MME (<= 15)"
         )
+
+    big = [r for r in rows if r["n"] >= 1_000_000]
+    if big:
+        print("\nTargets (issue 20):")
+    for r in big:
+        # the row of 10^5 samples at the same rate or over the same time
+        ten = [
+            a
+            for a in rows
+            if a["n"] == (r["n"] - 1) // 10 + 1
+            and (a["rate"] == r["rate"] or a["seconds"] == r["seconds"])
+        ]
+        growth = (
+            f", growth from {ten[0]['n']:,}: x{r['time'] / ten[0]['time']:.1f} (<= 11)"
+            if ten
+            else ""
+        )
+        print(
+            f"- {r['seconds']:,} s at {r['rate']:,} Hz: {r['time'] / r['mme']:.1f}x "
+            f"MME (<= 3; CPU time {r['cpu'] / r['cpu_mme']:.1f}x){growth}, "
+            f"peak RSS {r['rss_per_sample'] / 1024:.2f} kB per sample (<= 1.5), "
+            f"exact {r['exact']}/{r['seeds']}"
+        )
+
+
+def _number(value: float):
+    """A whole number of seconds or hertz as an int (the labels of the table)."""
+    return int(value) if float(value).is_integer() else value
 
 
 if __name__ == "__main__":

@@ -201,7 +201,12 @@ class _Search:
         long record every iteration counts).
         """
         theta = self.theta(start, coefs)
-        if polish:
+        if polish and _continues(start, slots, theta, self.engine):
+            # the polish of a trial goes on from where the trial stopped
+            # (its solver and linearisation), not from a fresh solver that
+            # would linearise the same point again
+            fit = self.engine.resume(start, max_iter=POLISH_ITER, tol=1e-9)
+        elif polish:
             fit = self.engine.fit(slots, theta, start.x, max_iter=POLISH_ITER, tol=1e-9)
         else:
             fit = self.engine.fit(
@@ -211,12 +216,8 @@ class _Search:
                 self.fit.cost * 1.05 + 10.0 if np.isfinite(self.fit.cost) else np.inf
             )
             if not fit.converged and fit.ok and fit.cost <= reach:
-                more = self.engine.fit(
-                    slots,
-                    fit.theta,
-                    fit.x,
-                    max_iter=TRIAL_ITER - fit.n_iter,
-                    tol=TRIAL_TOL,
+                more = self.engine.resume(
+                    fit, max_iter=TRIAL_ITER - fit.n_iter, tol=TRIAL_TOL
                 )
                 more.n_iter += fit.n_iter
                 fit = more if more.ok else fit
@@ -439,6 +440,17 @@ class _Search:
             why = _too_weak(p, gain, self.min_effect)
             self.reject(slot, why)
             self.note(f"rejected {self.describe(slot)}: {why}")
+
+
+def _continues(start: OutputErrorFit, slots, theta, engine) -> bool:
+    """Whether a fit of ``slots`` from ``theta`` is ``start`` carried on."""
+    return (
+        start._state is not None
+        and start._engine is engine
+        and start.ok
+        and tuple(start.slots) == tuple(tuple(s) for s in slots)
+        and np.array_equal(start.theta, theta)
+    )
 
 
 def _most_alike(features, z, ref, pool, n_best):

@@ -34,6 +34,8 @@ scale (coefficients from 1e-4 to 1e6 in one model) are handled alike.
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +51,33 @@ __all__ = [
 
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
+
+# Band buffers of factors no longer alive, by shape, for the next
+# factorisation of that size (most recent last; at most _IDLE_MAX kept).
+_IDLE: dict = {}
+_IDLE_MAX = 2
+# factors may die in any thread (studies run in threads by a scheduler)
+_IDLE_LOCK = threading.Lock()
+
+
+def _take_band(shape) -> np.ndarray:
+    """A band buffer of ``shape`` to factorise in: an idle one or a new one.
+
+    The buffer belongs to the factor made in it until that factor is garbage
+    (:func:`_give_back`), so two live factors never share memory.
+    """
+    with _IDLE_LOCK:
+        band = _IDLE.pop(shape, None)
+    return np.empty(shape) if band is None else band
+
+
+def _give_back(shape, band) -> None:
+    """Keep the buffer of a dead factor for the next factorisation."""
+    with _IDLE_LOCK:
+        _IDLE.pop(shape, None)
+        _IDLE[shape] = band
+        while len(_IDLE) > _IDLE_MAX:
+            _IDLE.pop(next(iter(_IDLE)))
 
 
 @dataclass
@@ -76,14 +105,19 @@ class KKTFactor:
 class BandedKKT:
     """Assembles and factorises the KKT matrix for ``N`` samples of ``n`` states.
 
-    One band buffer per instance, reused: a fresh ``O(N)`` allocation per
-    iteration costs more in page faults than the factorisation itself. (The
-    LU overwrites it, so a factor must be used before the next call.)
+    Band buffers are reused, not allocated per factorisation: a fresh
+    ``O(N)`` allocation per iteration costs more in page faults than the
+    factorisation itself. A factor owns its buffer while it is alive; when
+    it is garbage the buffer goes to a small pool (:data:`_IDLE`) from which
+    the next factorisation of the same size, by any instance, takes it. So a
+    solver does not hold a band between its factorisations: on a long record
+    every fitted model (MME's smoother, each output-error fit kept for its
+    statistics) held one of its own, 320 bytes per sample for two states,
+    most of the memory of a study.
     """
 
     def __init__(self, N: int, n: int, breaks=None):
         self.N, self.n = N, n
-        self._band = None
         #: intervals ``k`` with no dynamics link between samples ``k`` and
         #: ``k + 1`` (a new record starts at ``k + 1``): their multiplier rows
         #: become ``lam_k = 0`` and ``x_{k+1}`` a free initial state
@@ -104,9 +138,29 @@ class BandedKKT:
         kl = ku = 2 * n - 1
         ldab = 2 * kl + ku + 1
         diag = kl + ku
-        if self._band is None:
-            self._band = np.empty((N, 2 * n, ldab))
-        abT = self._band
+        shape = (N, 2 * n, ldab)
+        abT = _take_band(shape)
+        try:
+            lu, piv, info = self._factor_in(abT, Q, A, S)
+        except BaseException:
+            _give_back(shape, abT)
+            raise
+        udiag = np.abs(lu[diag])
+        umax = float(np.max(udiag))
+        if info > 0 or not (np.isfinite(umax) and umax > 0):
+            _give_back(shape, abT)
+            raise np.linalg.LinAlgError("singular KKT system")
+        logdet = float(np.sum(np.log(udiag)))
+        fac = KKTFactor(lu, piv, n, N, logdet, float(np.min(udiag)) / umax)
+        weakref.finalize(fac, _give_back, shape, abT)
+        return fac
+
+    def _factor_in(self, abT, Q, A, S):
+        """Assemble into the buffer ``abT`` and run ``dgbtrf`` in place."""
+        n, N = self.n, self.N
+        kl = ku = 2 * n - 1
+        diag = kl + ku
+        ldab = abT.shape[2]
         K = N - 1
         for lo in range(0, N, CHUNK):
             hi = min(lo + CHUNK, N)
@@ -138,12 +192,7 @@ class BandedKKT:
         lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
         if info < 0:  # pragma: no cover - a bug, not a user error
             raise RuntimeError(f"dgbtrf: illegal argument {-info}")
-        udiag = np.abs(lu[diag])
-        umax = float(np.max(udiag))
-        if info > 0 or not (np.isfinite(umax) and umax > 0):
-            raise np.linalg.LinAlgError("singular KKT system")
-        logdet = float(np.sum(np.log(udiag)))
-        return KKTFactor(lu, piv, n, N, logdet, float(np.min(udiag)) / umax)
+        return lu, piv, info
 
 
 @dataclass

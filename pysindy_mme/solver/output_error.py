@@ -58,8 +58,15 @@ from .transcription import MMESmoother
 
 __all__ = ["OutputErrorFit", "OutputErrorModel"]
 
-# Candidate sensitivities per solve: n_samples * n_states * group <= this.
+# Candidate sensitivities per banded solve: n_samples * n_states * group <=
+# this (a solve's right-hand sides, their copy and solution are several times
+# the sensitivities).
 _SCORE_ELEMENTS = 1 << 22
+# Candidate sensitivities per pass of the variational equations (one flow with
+# Jacobians, the cost of a linearisation, whatever the group): 128 MB of
+# float64. At 10^6 samples of two states the library's candidates of one
+# equation then take one pass instead of one per pair.
+_FLOW_ELEMENTS = 1 << 24
 
 
 @dataclass
@@ -379,8 +386,34 @@ class OutputErrorModel:
                 theta0[: self.n_physical], self.bounds[:, 0], self.bounds[:, 1]
             )
         solver = self._solver(slots, theta0, max_iter, tol, x_start)
+        return self._run(slots, solver, solver.start_from(x_start, theta0), theta0)
+
+    def resume(
+        self, fit: OutputErrorFit, max_iter: int = 50, tol: float = 1e-9
+    ) -> OutputErrorFit:
+        """Carry ``fit`` on: up to ``max_iter`` more Gauss-Newton iterations.
+
+        The same terms from where ``fit`` stopped, with its solver (internal
+        units and all) and its last linearisation: a fresh :meth:`fit` from
+        ``fit.x`` and ``fit.theta`` would linearise the same point again (on
+        a long record most of the cost of an iteration) and rebuild the
+        solver. The iterates are those of that fresh fit up to rounding of
+        the units (and, after a fit that stopped on its tolerance, a
+        Jacobian from just before its last sub-tolerance step, which the
+        next accepted step replaces). A fit without a solver state, or of
+        another engine, is refitted with :meth:`fit`.
+        """
+        if fit._state is None or fit._engine is not self or not fit.ok:
+            return self.fit(fit.slots, fit.theta, fit.x, max_iter=max_iter, tol=tol)
+        solver, res = fit._state
+        solver.max_iter, solver.tol = int(max_iter), float(tol)
+        return self._run(fit.slots, solver, res, fit.theta)
+
+    def _run(self, slots, solver, start, theta0) -> OutputErrorFit:
+        """Gauss-Newton of ``solver`` from ``start``, packaged as a fit."""
+        x_start = start.x
         try:
-            res = solver.solve(None, solver.start_from(x_start, theta0))
+            res = solver.solve(None, start)
         except (DivergenceError, np.linalg.LinAlgError, FloatingPointError) as exc:
             return self._failed(slots, theta0, x_start, f"model diverged: {exc}")
         # Joined: every defect below 1e-6 of the trajectory's scale, both in
@@ -647,39 +680,52 @@ class OutputErrorModel:
         # the model's parameters are re-optimised, except those held on a bound
         E, D, free = self._free_border(fit, E, D)
         M = solver._M[:, free]
-        group = max(1, _SCORE_ELEMENTS // max(N * n, 1))
+        per_sample = max(N * n, 1)
+        group = max(1, _SCORE_ELEMENTS // per_sample)
+        flow_group = max(group, _FLOW_ELEMENTS // per_sample)
         num = np.zeros(k_c)
         den = np.zeros(k_c)
         scale = np.ones(k_c)
-        for lo in range(0, k_c, group):
-            part = candidates[lo : lo + group]
-            sens, finite = self._candidate_sensitivities(solver, res, part)
-            # Each candidate's forcing at unit size: the unit of a
-            # coefficient (of y^3 in metres or in millimetres) is the user's
-            # choice, and the test below of a response lost to rounding must
-            # not depend on it (num / size and den / size^2 leave the score
-            # as it is; the step is scaled back).
-            with np.errstate(all="ignore"):
-                size = np.sqrt(np.mean(sens**2, axis=(0, 1)))
-            size = np.where(np.isfinite(size) & (size > 0), size, 1.0)
-            scale[lo : lo + len(part)] = size
-            rhs = np.zeros((N, 2 * n, len(part)))
-            rhs[:-1, n:] = -sens / size
-            sol = solve_reduced(fac, E, D, rhs, np.zeros((E.shape[2], len(part))))
-            dx = sol.z[:, :n]  # (N, n, G)
-            H = lin.H
-            dy = (
-                np.einsum("ai,kig->kag", H, dx)
-                if H.ndim == 2
-                else (np.einsum("kai,kig->kag", H, dx))
+        for lo_f in range(0, k_c, flow_group):
+            # one pass of the variational equations for many candidates (the
+            # pass costs a linearisation whatever their number), then the
+            # banded solves in smaller groups (their buffers are several
+            # times the sensitivities); each candidate's numbers are those
+            # of a pass of its own
+            sens_f, finite_f = self._candidate_sensitivities(
+                solver, res, candidates[lo_f : lo_f + flow_group]
             )
-            if M.shape[1]:
-                dy = dy + np.einsum("ap,pg->ag", M, sol.dtheta)[None]
-            Rdy = np.einsum("kab,kbg->kag", solver.Rinv, dy)
-            num[lo : lo + len(part)] = np.einsum("kag,ka->g", Rdy, lin.r)
-            den[lo : lo + len(part)] = np.einsum("kag,kag->g", Rdy, dy)
-            # a term not finite along the trajectory cannot be scored
-            num[lo : lo + len(part)][~finite] = np.nan
+            for lo_g in range(0, sens_f.shape[2], group):
+                lo = lo_f + lo_g
+                sens = sens_f[:, :, lo_g : lo_g + group]
+                finite = finite_f[lo_g : lo_g + group]
+                part = range(sens.shape[2])
+                # Each candidate's forcing at unit size: the unit of a
+                # coefficient (of y^3 in metres or in millimetres) is the user's
+                # choice, and the test below of a response lost to rounding must
+                # not depend on it (num / size and den / size^2 leave the score
+                # as it is; the step is scaled back).
+                with np.errstate(all="ignore"):
+                    size = np.sqrt(np.mean(sens**2, axis=(0, 1)))
+                size = np.where(np.isfinite(size) & (size > 0), size, 1.0)
+                scale[lo : lo + len(part)] = size
+                rhs = np.zeros((N, 2 * n, len(part)))
+                rhs[:-1, n:] = -sens / size
+                sol = solve_reduced(fac, E, D, rhs, np.zeros((E.shape[2], len(part))))
+                dx = sol.z[:, :n]  # (N, n, G)
+                H = lin.H
+                dy = (
+                    np.einsum("ai,kig->kag", H, dx)
+                    if H.ndim == 2
+                    else (np.einsum("kai,kig->kag", H, dx))
+                )
+                if M.shape[1]:
+                    dy = dy + np.einsum("ap,pg->ag", M, sol.dtheta)[None]
+                Rdy = np.einsum("kab,kbg->kag", solver.Rinv, dy)
+                num[lo : lo + len(part)] = np.einsum("kag,ka->g", Rdy, lin.r)
+                den[lo : lo + len(part)] = np.einsum("kag,kag->g", Rdy, dy)
+                # a term not finite along the trajectory cannot be scored
+                num[lo : lo + len(part)][~finite] = np.nan
         ssr = fit.cost
         # raw residual degrees of freedom, the statistic corrected for
         # correlated residuals (OutputErrorFit.inflation)

@@ -156,6 +156,30 @@ def box_qp(S, g, lower, upper):
     return v, active
 
 
+def mask_patterns(mask):
+    """``np.unique(mask, axis=0, return_inverse=True)`` without sorting rows.
+
+    The same patterns in the same (lexicographic) order and the same inverse,
+    so every sum over patterns is the same sum. Why: every solver built on a
+    long record (each output-error trial fit builds one) sorted its ``N``
+    rows, 0.4 s at 10^6 samples for a record without a single gap. A record
+    without gaps is one pattern; otherwise each row is coded as an integer,
+    the first channel the most significant bit (the order of the rows), and
+    the integers are sorted.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    N, m = mask.shape
+    if N and np.all(mask == mask[0]):
+        return mask[:1].copy(), np.zeros(N, dtype=np.intp)
+    if m > 62:  # no integer code: the general sort
+        patterns, inverse = np.unique(mask, axis=0, return_inverse=True)
+        return patterns, np.asarray(inverse).ravel()
+    weights = np.left_shift(1, np.arange(m - 1, -1, -1, dtype=np.int64))
+    codes, inverse = np.unique(mask.astype(np.int64) @ weights, return_inverse=True)
+    patterns = (codes[:, None] & weights[None, :]) != 0
+    return patterns, np.asarray(inverse).ravel()
+
+
 class _Scaled:
     """``func(z * scale) / divide`` per column: a measurement function on the
     solver's states (a class, not a closure: a fit holding it pickles when
@@ -354,8 +378,7 @@ class MMESmoother(GaussNewton):
 
         ``R`` in internal units; sets ``Rinv`` and ``_logdetR``.
         """
-        patterns, inverse = np.unique(self.mask, axis=0, return_inverse=True)
-        inverse = np.asarray(inverse).ravel()
+        patterns, inverse = mask_patterns(self.mask)
         self.Rinv = np.zeros((self.N, self.m, self.m))
         self._logdetR = 0.0
         for p, pat in enumerate(patterns):

@@ -1,0 +1,141 @@
+"""Issue 20: the shortcuts of a cheaper confirmation stage against what they replace.
+
+Each shortcut is checked on cases where the replaced computation also runs:
+a band buffer reused from a dead factor against a fresh one (and two live
+factors never sharing one), a resumed fit against a fresh fit from the same
+point, the score tests from one pass of the variational equations against a
+pass per candidate, and the row patterns of the noise against ``np.unique``.
+"""
+
+import gc
+
+import numpy as np
+import pytest
+
+from pysindy_mme.solver import kkt
+from pysindy_mme.solver import output_error as oe
+from pysindy_mme.solver.kkt import BandedKKT
+from pysindy_mme.solver.output_error import OutputErrorModel
+from pysindy_mme.solver.transcription import mask_patterns
+from pysindy_mme.systems import van_der_pol
+
+
+def _blocks(N, n, seed):
+    rng = np.random.default_rng(seed)
+    Q = np.einsum("kij,klj->kil", *(2 * [rng.standard_normal((N, n, n))]))
+    Q += np.eye(n)
+    A = np.eye(n) + 0.1 * rng.standard_normal((N - 1, n, n))
+    return Q, A
+
+
+def test_live_factors_never_share_a_band_and_a_dead_ones_is_reused():
+    N, n = 300, 2
+    Q, A = _blocks(N, n, 0)
+    Q2, A2 = _blocks(N, n, 1)
+    rhs = np.random.default_rng(2).standard_normal((N, 2 * n))
+    kkt._IDLE.clear()
+    first = BandedKKT(N, n).factor(Q, A, None)
+    alone = first.solve(rhs)
+    second = BandedKKT(N, n).factor(Q2, A2, None)
+    assert not np.shares_memory(first.lu, second.lu)
+    # the first factor is intact after the second was made
+    np.testing.assert_array_equal(first.solve(rhs), alone)
+    buffer = first.lu
+    del first
+    gc.collect()
+    (idle,) = kkt._IDLE.values()
+    assert np.shares_memory(idle, buffer)
+    del buffer, idle
+    third = BandedKKT(N, n).factor(Q, A, None)
+    assert not kkt._IDLE  # the idle buffer was taken
+    # the same answer as the fresh buffer gave
+    np.testing.assert_array_equal(third.solve(rhs), alone)
+
+
+def test_a_singular_system_gives_its_buffer_back():
+    N, n = 50, 2
+    kkt._IDLE.clear()
+    Q = np.zeros((N, n, n))
+    A = np.zeros((N - 1, n, n))
+    with pytest.raises(np.linalg.LinAlgError):
+        BandedKKT(N, n).factor(Q, A, None)
+    assert len(kkt._IDLE) == 1
+
+
+@pytest.mark.parametrize("m", [1, 3])
+def test_mask_patterns_are_those_of_np_unique(m):
+    rng = np.random.default_rng(m)
+    for share in (0.0, 0.3, 0.9, 1.0):
+        mask = rng.random((500, m)) >= share
+        patterns, inverse = np.unique(mask, axis=0, return_inverse=True)
+        ours, our_inverse = mask_patterns(mask)
+        np.testing.assert_array_equal(ours, patterns)
+        np.testing.assert_array_equal(our_inverse, np.ravel(inverse))
+
+
+def _features(z, cols):
+    x1, x2 = z[:, 0], z[:, 1]
+    library = {
+        0: np.ones_like(x1),
+        1: x1,
+        2: x2,
+        3: x1**2,
+        4: x1 * x2,
+        5: x2**2,
+        6: x1**3,
+        7: x1**2 * x2,
+        8: x1 * x2**2,
+        9: x2**3,
+    }
+    return np.column_stack([library[c] for c in cols])
+
+
+def _ignorance(x, t, u, p):
+    return np.column_stack([x[:, 1], np.zeros(len(x))])
+
+
+@pytest.fixture(scope="module")
+def record():
+    system = van_der_pol()
+    t = system.time(20, 20)
+    data = system.measure(3, t=t)
+    engine = OutputErrorModel(
+        _ignorance, 2, _features, data.y, data.t, None, np.eye(1) * 0.01, np.eye(2)[:1]
+    )
+    return engine, data
+
+
+def test_a_resumed_fit_ends_where_a_fresh_fit_from_its_point_ends(record):
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    start = engine.fit(slots, np.array([-0.5, 0.5, -0.5]), data.x, max_iter=2)
+    assert start.n_iter == 2 and not start.converged
+    fresh = engine.fit(slots, start.theta, start.x, max_iter=50, tol=1e-9)
+    resumed = engine.resume(start, max_iter=50, tol=1e-9)
+    assert fresh.converged and resumed.converged
+    np.testing.assert_allclose(resumed.theta, fresh.theta, rtol=1e-7, atol=1e-9)
+    assert resumed.cost == pytest.approx(fresh.cost, rel=1e-9)
+    np.testing.assert_allclose(resumed.std_errors, fresh.std_errors, rtol=1e-6)
+    # the fit it went on from keeps its own result and statistics
+    assert start.n_iter == 2
+    assert np.all(np.isfinite(start.std_errors))
+
+
+def test_resume_of_a_failed_fit_refits(record):
+    engine, data = record
+    failed = engine._failed(((1, 1),), np.array([-1.0]), data.x, "test")
+    again = engine.resume(failed, max_iter=20)
+    assert again.ok
+
+
+def test_scores_from_one_pass_equal_a_pass_per_candidate(record, monkeypatch):
+    engine, data = record
+    fit = engine.fit([(1, 7)], np.array([-1.0]), data.x)
+    pool = [(1, c) for c in range(10) if c != 7]
+    together = engine.scores(fit, pool)
+    monkeypatch.setattr(oe, "_FLOW_ELEMENTS", 1)
+    monkeypatch.setattr(oe, "_SCORE_ELEMENTS", 1)
+    one_by_one = engine.scores(fit, pool)
+    np.testing.assert_allclose(together[0], one_by_one[0], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(together[1], one_by_one[1], rtol=1e-9, atol=1e-12)
+    assert np.argmax(together[0]) == np.argmax(one_by_one[0])
