@@ -283,21 +283,26 @@ class _Search:
                     if smaller
                     else self.assumed
                 )
-                if without.ok:
-                    p, gain, needed = self.improves(without, fit)
-                    if needed:
-                        continue  # the refit says it matters: keep it
+                if not without.ok:
+                    # from this fit's trajectory the smaller model may not be
+                    # fittable; MME's states follow the data whatever the model
+                    without = self.mme_trial(smaller, without)
+                if not without.ok:
+                    # A Wald p of 1 is also what an undefined standard error
+                    # gives: with no fit without the term there is no evidence
+                    # that it does not matter (a true term whose removal made
+                    # the fit diverge was dropped at 10^6 samples)
+                    continue
+                p, gain, needed = self.improves(without, fit)
+                if needed:
+                    continue  # the refit says it matters: keep it
                 removed.append(
                     (slots[worst], float(pvals[worst]), float(effects[worst]))
                 )
                 slots = smaller
                 if not slots:
                     return [], self.assumed, removed
-                fit = (
-                    without
-                    if without.ok
-                    else self.refit(slots, fit.coefficients[keep], fit)
-                )
+                fit = without
                 dropped = True
                 break
             if not dropped:
