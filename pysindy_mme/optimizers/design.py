@@ -25,9 +25,10 @@ import numbers
 
 import numpy as np
 
+from ._checks import check_data
 from ._numeric import BLOCK_ELEMENTS, one_blas_thread
 
-__all__ = ["StreamedDesign", "as_streamed", "check_streamed_data", "is_streamed"]
+__all__ = ["StreamedDesign", "as_streamed", "check_library", "is_streamed"]
 
 # Blocks of a pass sent to one Dask task: a task per block would cost more in
 # scheduling (about a millisecond each) than the block's arithmetic.
@@ -52,19 +53,25 @@ def as_streamed(x):
     return None
 
 
-def check_streamed_data(design, y, sample_weight, check_data):
-    """``(design, y, w)`` for a streamed library, checked as ``check_data`` does.
+def check_library(x, y, sample_weight, feature_names):
+    """``(x, y, w, feature_names)`` checked, for an array or a streamed library.
 
-    The targets and weights are checked by ``check_data`` itself (against a
-    stand-in library of one zero column, so nothing of the library is read):
-    rows whose targets are all NaN are dropped, and the design with them.
-    Rows whose library values are all NaN cannot be seen without a pass;
-    they make their columns non-finite, which the screen sets aside.
+    An array goes through :func:`~._checks.check_data`. For a streamed one
+    (:func:`as_streamed`) the targets and weights are checked the same way
+    against a stand-in library of one zero column, so nothing of the library
+    is read: rows whose targets are all NaN are dropped, and the design's
+    with them. (Rows whose library values are all NaN cannot be seen without
+    a pass; they make their columns non-finite, which the screen sets aside.)
+    The design's names are the default ``feature_names``.
     """
+    design = as_streamed(x)
+    if design is None:
+        x, y, w, _ = check_data(x, y, sample_weight)
+        return x, y, w, feature_names
     _, y, w, kept = check_data(np.zeros((design.n_rows, 1)), y, sample_weight)
     if kept is not None:
         design = design.take_rows(kept)
-    return design, y, w
+    return design, y, w, design.names if feature_names is None else feature_names
 
 
 def _positive_int(value, name: str) -> int:
@@ -184,7 +191,10 @@ class StreamedDesign:
         return out
 
     def __getitem__(self, key):
-        """``design[:, cols]`` (all rows, some columns), as for an array."""
+        """``design[:, cols]`` (all rows, some columns), as for an array;
+        ``design[mask]`` (a boolean mask of rows): :meth:`take_rows`."""
+        if isinstance(key, np.ndarray) and key.dtype == bool and key.ndim == 1:
+            return self.take_rows(np.flatnonzero(key))
         if not (
             isinstance(key, tuple)
             and len(key) == 2

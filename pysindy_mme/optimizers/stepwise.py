@@ -32,10 +32,10 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
-from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_params
+from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_params
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
-from .design import as_streamed, check_streamed_data
+from .design import check_library
 from .final_fit import final_fit
 from .incremental_qr import IncrementalQR
 from .robust import rows_look_time_ordered
@@ -389,16 +389,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self
         """
         params = check_params(self)
-        # predict's shape follows y's (scikit-learn's convention); coef_ stays
-        # 2-D, as pysindy's optimizers keep it
+        # predict's shape follows y's (scikit-learn's convention); coef_ 2-D
         y_ndim = array_ndim(y)
-        streamed = as_streamed(x_)  # a library read by column blocks, never whole
-        if streamed is None:
-            x, y, w, _ = check_data(x_, y, sample_weight)
-        else:
-            x, y, w = check_streamed_data(streamed, y, sample_weight, check_data)
-            if feature_names is None:
-                feature_names = streamed.names
+        x, y, w, feature_names = check_library(x_, y, sample_weight, feature_names)
         n_features = x.shape[1]
         self._y_ndim = y_ndim
         for label, names, size, what in (
@@ -416,8 +409,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
 
         keep = w > 0
         if not np.all(keep):
-            rows = x.take_rows(np.flatnonzero(keep)) if streamed is not None else None
-            x, y, w = (x[keep] if rows is None else rows), y[keep], w[keep]
+            x, y, w = x[keep], y[keep], w[keep]
         screen = screen_columns(x, np.sqrt(w), float(w.sum()), params["tolerance"])
         if isinstance(self.time_ordered, str):
             self.rows_in_time_order_ = rows_look_time_ordered(x, screen.eligible)
