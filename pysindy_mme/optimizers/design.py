@@ -337,13 +337,15 @@ class _PowerBlocks:
     """Columns of a polynomial library from its exponents.
 
     Each column is a product of at most ``degree`` inputs (an input repeated
-    by its power; a padding slot reads a column of ones), made for a whole
-    block by one gather and one product per slot.
+    by its power; a padding slot reads a row of ones), made for a whole block
+    by one gather and one product per slot. The inputs are kept as rows
+    (``x.T``), so a gather copies contiguous rows and the block comes out in
+    column-major order, as the passes read it.
     """
 
     def __init__(self, x, powers):
         n, d = x.shape
-        self.x = np.column_stack([x, np.ones(n)])  # index d: the ones
+        self.rows = np.vstack([x.T, np.ones((1, n))])  # index d: the ones
         degree = int(powers.sum(axis=1).max(initial=0))
         self.factors = np.full((powers.shape[0], max(degree, 1)), d, dtype=np.intp)
         for j, row in enumerate(powers):
@@ -352,12 +354,15 @@ class _PowerBlocks:
 
     def __call__(self, start, stop):
         f = self.factors[start:stop]
-        out = self.x[:, f[:, 0]]
+        ones = self.rows.shape[0] - 1
+        out = self.rows[f[:, 0]]
         for s in range(1, f.shape[1]):
-            used = f[:, s] != self.x.shape[1] - 1
-            if np.any(used):
-                out[:, used] *= self.x[:, f[used, s]]
-        return out
+            used = np.flatnonzero(f[:, s] != ones)
+            if used.size == out.shape[0]:
+                out *= self.rows[f[:, s]]
+            elif used.size:
+                out[used] *= self.rows[f[used, s]]
+        return out.T
 
 
 def _run_task(make, n_rows, ranges, func, args):

@@ -115,7 +115,8 @@ def _block_statistics(B, w, sw, n_eff, G):
         fprint = np.vstack([g @ C for g in G])
     cn2 = np.where(late, cn2 * sc**2, cn2)
     fprint = np.where(late, fprint * sc, fprint)
-    first = B[0] if B.shape[0] else np.zeros(B.shape[1])
+    # a copy: a view would keep the whole block alive with the statistics
+    first = B[0].copy() if B.shape[0] else np.zeros(B.shape[1])
     return dict(
         finite=fin,
         exact_const=exact_const,
@@ -183,7 +184,7 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
         mean=m * sc,
         cn2=np.where(late, cn2 * sc**2, cn2),
         fprint=np.where(late, fprint * sc, fprint),
-        first=np.asarray(x[0], dtype=float) if n else np.zeros(p),
+        first=np.array(x[0], dtype=float) if n else np.zeros(p),
     )
 
 
