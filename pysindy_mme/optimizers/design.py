@@ -7,8 +7,9 @@ selection (the screen, then one product ``X^T v`` per step) asks for the
 blocks one after the other, so the memory is one block (plus, in the state,
 a few numbers per column and ``O(n_rows * k)`` for the ``k`` selected
 columns), not the library. A ``dask.array`` is read the same way
-(:meth:`StreamedDesign.from_dask`), and a fitted pysindy polynomial library
-by its exponents (:meth:`StreamedDesign.from_library`).
+(:meth:`StreamedDesign.from_dask`), and a pysindy polynomial library from
+its inputs (:meth:`StreamedDesign.from_library` for a fitted library,
+:meth:`StreamedDesign.polynomial` for one too wide to fit).
 
 With a ``distributed.Client`` (``client=``) the per-block work of a pass
 (the screen's column statistics, ``X^T v``) runs as Dask tasks on the
@@ -21,6 +22,7 @@ pysindy-mme[distributed]``).
 
 from __future__ import annotations
 
+import itertools
 import numbers
 
 import numpy as np
@@ -144,6 +146,11 @@ class StreamedDesign:
                 f"client must be a distributed.Client (with submit), got {client!r}"
             )
         self.client = client
+        self._shipped = None  # (client, future of the callable on its workers)
+
+    def __getstate__(self):
+        # a copy or a pickle does not carry the client's future
+        return {**self.__dict__, "_shipped": None}
 
     # ------------------------------------------------------------ the shape
     @property
@@ -289,11 +296,37 @@ class StreamedDesign:
                 f"got shape {x.shape}"
             )
         return cls(
-            _PowerBlocks(x, powers),
+            _PowerBlocks(x, _PowerBlocks.from_powers(powers)),
             x.shape[0],
             powers.shape[0],
             block_columns=block_columns,
             names=list(library.get_feature_names()),
+            client=client,
+        )
+
+    @classmethod
+    def polynomial(
+        cls, x, degree=2, *, include_bias=True, block_columns=None, client=None
+    ):
+        """pysindy's ``PolynomialLibrary(degree, include_bias)`` on ``x``, streamed.
+
+        The same columns, order and names as the pysindy library (default
+        options), without its ``powers_`` table: for a million columns of a
+        thousand inputs that table alone is 11 GB, here a few numbers per
+        column are kept.
+        """
+        x = np.asarray(x, dtype=float)
+        if x.ndim != 2 or x.shape[1] == 0:
+            raise ValueError(f"x must be 2-D with some columns, got shape {x.shape}")
+        degree = _positive_int(degree, "degree")
+        d = x.shape[1]
+        factors = _polynomial_factors(d, degree, bool(include_bias))
+        return cls(
+            _PowerBlocks(x, factors),
+            x.shape[0],
+            factors.shape[0],
+            block_columns=block_columns,
+            names=[_factor_name(row, d) for row in factors],
             client=client,
         )
 
@@ -334,23 +367,30 @@ class _DaskBlocks:
 
 
 class _PowerBlocks:
-    """Columns of a polynomial library from its exponents.
+    """Columns of a polynomial library from their factors.
 
-    Each column is a product of at most ``degree`` inputs (an input repeated
-    by its power; a padding slot reads a row of ones), made for a whole block
-    by one gather and one product per slot. The inputs are kept as rows
-    (``x.T``), so a gather copies contiguous rows and the block comes out in
-    column-major order, as the passes read it.
+    ``factors[j]`` lists the inputs whose product is column ``j`` (an input
+    repeated by its power; the index ``d``, one past the inputs, reads a row
+    of ones). A whole block is made by one gather and one product per slot.
+    The inputs are kept as rows (``x.T``), so a gather copies contiguous rows
+    and the block comes out in column-major order, as the passes read it.
     """
 
-    def __init__(self, x, powers):
-        n, d = x.shape
-        self.rows = np.vstack([x.T, np.ones((1, n))])  # index d: the ones
+    def __init__(self, x, factors):
+        n, _ = x.shape
+        self.rows = np.vstack([x.T, np.ones((1, n))])
+        self.factors = factors
+
+    @staticmethod
+    def from_powers(powers):
+        """``factors`` of the columns with exponents ``powers`` (pysindy's)."""
+        n_out, d = powers.shape
         degree = int(powers.sum(axis=1).max(initial=0))
-        self.factors = np.full((powers.shape[0], max(degree, 1)), d, dtype=np.intp)
+        factors = np.full((n_out, max(degree, 1)), d, dtype=np.intp)
         for j, row in enumerate(powers):
             f = np.repeat(np.arange(d), row)
-            self.factors[j, : f.size] = f
+            factors[j, : f.size] = f
+        return factors
 
     def __call__(self, start, stop):
         f = self.factors[start:stop]
@@ -365,6 +405,34 @@ class _PowerBlocks:
         return out.T
 
 
+def _polynomial_factors(d: int, degree: int, include_bias: bool) -> np.ndarray:
+    """Factors of pysindy's ``PolynomialLibrary`` columns, in its order.
+
+    Degree by degree, and within a degree the combinations with replacement
+    of the inputs in lexicographic order (pysindy's ``powers_`` order).
+    """
+    parts = [np.full((1, degree), d, dtype=np.intp)] if include_bias else []
+    for k in range(1, degree + 1):
+        combos = np.array(
+            list(itertools.combinations_with_replacement(range(d), k)), dtype=np.intp
+        ).reshape(-1, k)
+        pad = np.full((combos.shape[0], degree - k), d, dtype=np.intp)
+        parts.append(np.hstack([combos, pad]))
+    return np.vstack(parts)
+
+
+def _factor_name(row, d: int) -> str:
+    """pysindy's name of a product: ``'x0^2 x1'``; ``'1'`` for the constant."""
+    used = [int(i) for i in row if i != d]
+    if not used:
+        return "1"
+    words = []
+    for i in sorted(set(used)):
+        power = used.count(i)
+        words.append(f"x{i}" if power == 1 else f"x{i}^{power}")
+    return " ".join(words)
+
+
 def _run_task(make, n_rows, ranges, func, args):
     """One Dask task: several blocks of a pass, made and reduced on the worker."""
     with one_blas_thread():
@@ -375,7 +443,12 @@ def _map_on_client(design, func, ranges, args):
     client = design.client
     # the arguments (vectors of n_rows) go to the workers once per pass
     shipped = [client.scatter(a, broadcast=True) for a in args]
-    make = client.scatter(design._block, broadcast=True)
+    # the callable (maybe holding the data it makes columns from) once per
+    # client, not once per pass
+    cached = getattr(design, "_shipped", None)
+    if cached is None or cached[0] is not client:
+        design._shipped = (client, client.scatter(design._block, broadcast=True))
+    make = design._shipped[1]
     groups = [
         ranges[i : i + BLOCKS_PER_TASK] for i in range(0, len(ranges), BLOCKS_PER_TASK)
     ]

@@ -120,6 +120,16 @@ def test_from_library_streams_the_pysindy_columns():
     assert model.feature_names_ == library.get_feature_names()
 
 
+@pytest.mark.parametrize("degree, bias", [(1, True), (2, True), (3, False)])
+def test_polynomial_is_pysindys_library(degree, bias):
+    ps = pytest.importorskip("pysindy")
+    x = np.random.default_rng(1).standard_normal((50, 4))
+    library = ps.PolynomialLibrary(degree=degree, include_bias=bias).fit(x)
+    design = StreamedDesign.polynomial(x, degree, include_bias=bias, block_columns=4)
+    assert design.names == library.get_feature_names()
+    np.testing.assert_allclose(design[:, :], library.transform(x), rtol=1e-14)
+
+
 def test_bad_streamed_input_is_refused_with_the_argument_named():
     X = np.ones((10, 4))
     with pytest.raises(ValueError, match="block must be a callable"):
