@@ -213,7 +213,10 @@ class StreamedDesign:
             )
         cols = key[1]
         if isinstance(cols, slice):
-            return self.block(*cols.indices(self.n_columns)[:2])
+            start, stop, step = cols.indices(self.n_columns)
+            if step == 1:
+                return self.block(start, max(start, stop))
+            return self.columns(np.arange(start, stop, step))
         if np.ndim(cols) == 0:
             return self.columns([int(cols)])[:, 0]
         cols = np.asarray(cols)
