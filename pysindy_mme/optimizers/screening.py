@@ -142,7 +142,10 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
     costs more than both passes).
     """
     n, p = x.shape
-    rows = max(1, CACHE_BLOCK_ELEMENTS // p)
+    # Each chunk also costs a few operations on vectors of length p (the
+    # running extremes and sums): at least ROW_CHUNK_MIN_ROWS rows keep them
+    # a small part of the work.
+    rows = max(ROW_CHUNK_MIN_ROWS, CACHE_BLOCK_ELEMENTS // p)
     chunks = [slice(a, min(a + rows, n)) for a in range(0, n, rows)]
     hi = np.full(p, -np.inf)
     lo = np.full(p, np.inf)
@@ -174,8 +177,7 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
             if early_scale is not None:
                 C *= early_scale
             cn2 += np.einsum("ij,ij->j", C, C)
-            for k in range(G.shape[0]):
-                fprint[k] += G[k, c] @ C
+            fprint += G[:, c] @ C  # one read of the chunk for all directions
     return dict(
         finite=fin,
         exact_const=fin & (hi == lo),
@@ -190,6 +192,7 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
 
 # Row-major arrays at least this wide are screened by chunks of rows.
 ROW_CHUNK_MIN_COLUMNS = 64
+ROW_CHUNK_MIN_ROWS = 16
 
 
 def _column_statistics(x, w, sw, n_eff, G) -> dict:
