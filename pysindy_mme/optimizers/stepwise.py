@@ -372,9 +372,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
 
         Parameters
         ----------
-        x_ : array-like (n_samples, n_features)
-            The library (pysindy's Theta). Columns with non-finite values are
-            set aside, not an error.
+        x_ : array-like, StreamedDesign or dask.array (n_samples, n_features)
+            The library (pysindy's Theta; streamed: read by column blocks,
+            never whole). Non-finite columns are set aside, not an error.
         y : array-like (n_samples,) or (n_samples, n_targets)
             Targets (time derivatives); must be finite.
         sample_weight : float or array-like (n_samples,), optional
