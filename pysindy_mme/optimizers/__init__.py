@@ -3,6 +3,7 @@
 :class:`FloatingFStepwise` is a pysindy optimizer (``ps.SINDy(optimizer=
 FloatingFStepwise())``). The modules, one job each:
 
+* :mod:`.design`: :class:`StreamedDesign`, a library read by column blocks;
 * :mod:`.screening`: library columns that can never be selected, and why;
 * :mod:`.incremental_qr`: the QR state from which partial F-ratios follow;
 * :mod:`.selection`: the Phase I / Phase II machine over that state;
@@ -20,6 +21,7 @@ from ._checks import InvalidParameterError
 from ._interface import ConstantNotInLibraryWarning
 from .anova import AnovaTable, f_critical, f_pvalue, fit_anova, lstsq_refined
 from .cv import FloatingFStepwiseCV
+from .design import StreamedDesign
 from .selection import Step
 from .stepwise import FloatingFStepwise
 from .summary import StepwiseSummary
@@ -34,6 +36,7 @@ __all__ = [
     "Step",
     "StepwiseCycleWarning",
     "StepwiseSummary",
+    "StreamedDesign",
     "f_critical",
     "f_pvalue",
     "fit_anova",

@@ -247,7 +247,12 @@ def check_data(x, y, sample_weight):
     # pysindy's BaseOptimizer.fit: drop the samples where x or y is all NaN.
     kept = None
     if n and y.shape[1]:
-        good = ~np.all(np.isnan(x), axis=1) & ~np.all(np.isnan(y), axis=1)
+        # A row is all NaN only if its first value is: the whole check reads
+        # only those rows (a wide library is not copied into a mask).
+        x_nan = np.zeros(n, dtype=bool)
+        maybe = np.flatnonzero(np.isnan(x[:, 0]))
+        x_nan[maybe] = np.all(np.isnan(x[maybe]), axis=1)
+        good = ~x_nan & ~np.all(np.isnan(y), axis=1)
         if not np.all(good):
             kept = np.flatnonzero(good)
             x, y, w = x[kept], y[kept], w[kept]

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
-__all__ = ["EPS", "column_blocks", "pow2_scale", "safe_ratio"]
+__all__ = ["EPS", "column_blocks", "one_blas_thread", "pow2_scale", "safe_ratio"]
 
 EPS = np.finfo(float).eps
 # Temporaries of size n_samples x block are capped at this many doubles (8 MB).
 BLOCK_ELEMENTS = 1 << 20
+# Blocks that several elementwise passes read should stay in a core's cache
+# (2 MB of doubles) rather than be read from main memory again by each pass.
+CACHE_BLOCK_ELEMENTS = 1 << 18
 
 
 def safe_ratio(num, den):
@@ -35,8 +39,20 @@ def pow2_scale(max_abs):
     return np.where(ok, np.ldexp(1.0, -exponent), 1.0)
 
 
-def column_blocks(n_rows: int, n_cols: int):
+def column_blocks(n_rows: int, n_cols: int, elements: int = BLOCK_ELEMENTS):
     """Column slices whose ``n_rows x width`` temporaries stay small."""
-    width = max(1, BLOCK_ELEMENTS // max(n_rows, 1))
+    width = max(1, elements // max(n_rows, 1))
     for start in range(0, n_cols, width):
         yield slice(start, min(start + width, n_cols))
+
+
+def one_blas_thread():
+    """Context: BLAS on one thread, for loops of many small products.
+
+    A product over one block takes about a millisecond; splitting it over
+    threads costs a synchronisation each time, and on a busy machine a thread
+    that is not scheduled makes every call wait (measured: a pass of the
+    screen 7x slower with two threads than with one on a loaded 2-core
+    machine).
+    """
+    return threadpool_limits(limits=1, user_api="blas")

@@ -14,7 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._numeric import column_blocks, pow2_scale, safe_ratio
+from ._numeric import (
+    CACHE_BLOCK_ELEMENTS,
+    column_blocks,
+    one_blas_thread,
+    pow2_scale,
+    safe_ratio,
+)
+from .design import is_streamed
 
 __all__ = ["Screen", "screen_columns", "xt"]
 
@@ -22,6 +29,13 @@ __all__ = ["Screen", "screen_columns", "xt"]
 # whose values are deep in the subnormal range cannot be used reliably.
 _HUGE = 2.0**1000
 _TINY = 2.0**-960
+# Columns whose largest magnitude is in this range are scaled after their
+# sums of squares (exact there: no square leaves the double range).
+_LATE_MIN = 2.0**-400
+_LATE_MAX = 2.0**400
+# Fixed random directions whose |products| with the unit centred columns
+# must all agree for a pair to be checked for collinearity.
+N_FINGERPRINTS = 2
 
 
 @dataclass
@@ -39,10 +53,165 @@ class Screen:
 
 
 def xt(x, v, eligible):
-    """``x.T @ v`` with the columns that are not eligible (maybe non-finite) zeroed."""
-    with np.errstate(all="ignore"):  # inf * 0 in set-aside columns
-        out = x.T @ v
+    """``x.T @ v`` with the columns that are not eligible (maybe non-finite) zeroed.
+
+    ``x`` is an array or a :class:`~.design.StreamedDesign` (one pass over
+    its blocks).
+    """
+    if is_streamed(x):
+        out = x.xt(v)
+    else:
+        with np.errstate(all="ignore"):  # inf * 0 in set-aside columns
+            out = x.T @ v
     return np.where(eligible, out, 0.0)
+
+
+def _fingerprint_rows(n: int) -> np.ndarray:
+    """Fixed random directions: collinear columns have equal |fingerprints|.
+
+    The first is the one the screen has always used (it orders the pairs to
+    check); the others only rule out pairs that the first lets through.
+    """
+    first = np.random.default_rng(20240601).standard_normal(n)
+    more = np.random.default_rng(20260601).standard_normal((N_FINGERPRINTS - 1, n))
+    return np.vstack([first, more])
+
+
+def _block_statistics(B, w, sw, n_eff, G):
+    """Column statistics of one block (see :func:`screen_columns`).
+
+    Few passes over the block: its largest and smallest values (which also
+    tell non-finite and exactly constant columns apart), one product for the
+    weighted means, one for the centred squares and one for the fingerprints.
+    The power-of-two scale is applied after the sums where that is exact
+    (values of moderate magnitude), which gives the same digits as scaling
+    first.
+    """
+    # Column-major: each column's passes run over contiguous memory (a
+    # reduction down a row-major block of few columns is many times slower).
+    B = np.asfortranarray(B, dtype=float)
+    with np.errstate(invalid="ignore"):
+        hi, lo = B.max(axis=0), B.min(axis=0)
+    fin = np.isfinite(hi) & np.isfinite(lo)  # NaN and inf reach max or min
+    if not np.all(fin):
+        B = np.where(fin, B, 0.0)
+        hi, lo = B.max(axis=0), B.min(axis=0)
+    top = np.maximum(hi, -lo)
+    sc = pow2_scale(top)
+    exact_const = fin & (hi == lo)
+    with np.errstate(over="ignore", invalid="ignore"):  # "huge" columns
+        m = (w @ B) / n_eff
+        C = np.subtract(B, m, order="F")  # centred: accurate for near-constants
+    if not _unit_weights(sw):
+        C *= sw[:, None]
+    # Scaling after squaring is exact unless squares leave the double range.
+    late = (top >= _LATE_MIN) & (top <= _LATE_MAX)
+    if not np.all(late):
+        C[:, ~late] *= sc[~late]
+    with np.errstate(over="ignore", invalid="ignore"):
+        cn2 = np.einsum("ij,ij->j", C, C)
+        # one matrix-vector product per direction (the first as it always
+        # was; a product with a few rows is much slower than that in BLAS)
+        fprint = np.vstack([g @ C for g in G])
+    cn2 = np.where(late, cn2 * sc**2, cn2)
+    fprint = np.where(late, fprint * sc, fprint)
+    # a copy: a view would keep the whole block alive with the statistics
+    first = B[0].copy() if B.shape[0] else np.zeros(B.shape[1])
+    return dict(
+        finite=fin,
+        exact_const=exact_const,
+        max_abs=top,
+        scale=sc,
+        mean=m * sc,
+        cn2=cn2,
+        fprint=fprint,
+        first=first,
+    )
+
+
+def _unit_weights(sw) -> bool:
+    return bool(np.all(sw == 1.0))
+
+
+def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
+    """:func:`_block_statistics` of a row-major array, by chunks of whole rows.
+
+    A wide array in row-major order is read contiguously this way: one pass
+    for the extremes and the means, one for the centred squares and the
+    fingerprints (a column block would have to be transposed first, which
+    costs more than both passes).
+    """
+    n, p = x.shape
+    # Each chunk also costs a few operations on vectors of length p (the
+    # running extremes and sums): at least ROW_CHUNK_MIN_ROWS rows keep them
+    # a small part of the work.
+    rows = max(ROW_CHUNK_MIN_ROWS, CACHE_BLOCK_ELEMENTS // p)
+    chunks = [slice(a, min(a + rows, n)) for a in range(0, n, rows)]
+    hi = np.full(p, -np.inf)
+    lo = np.full(p, np.inf)
+    total = np.zeros(p)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c in chunks:
+            R = x[c]
+            np.maximum(hi, R.max(axis=0), out=hi)  # NaN propagates
+            np.minimum(lo, R.min(axis=0), out=lo)
+            total += w[c] @ R
+    fin = np.isfinite(hi) & np.isfinite(lo)
+    # set-aside columns: any finite numbers (they are never used)
+    hi, lo, total = (np.where(fin, v, 0.0) for v in (hi, lo, total))
+    top = np.maximum(hi, -lo)
+    sc = pow2_scale(top)
+    with np.errstate(over="ignore", invalid="ignore"):
+        m = total / n_eff
+    late = (top >= _LATE_MIN) & (top <= _LATE_MAX)
+    early_scale = None if np.all(late) else np.where(late, 1.0, sc)
+    unit = _unit_weights(sw)
+    cn2 = np.zeros(p)
+    fprint = np.zeros((G.shape[0], p))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c in chunks:
+            R = x[c] if np.all(fin) else np.where(fin, x[c], 0.0)
+            C = R - m
+            if not unit:
+                C *= sw[c, None]
+            if early_scale is not None:
+                C *= early_scale
+            cn2 += np.einsum("ij,ij->j", C, C)
+            fprint += G[:, c] @ C  # one read of the chunk for all directions
+    return dict(
+        finite=fin,
+        exact_const=fin & (hi == lo),
+        max_abs=top,
+        scale=sc,
+        mean=m * sc,
+        cn2=np.where(late, cn2 * sc**2, cn2),
+        fprint=np.where(late, fprint * sc, fprint),
+        first=np.array(x[0], dtype=float) if n else np.zeros(p),
+    )
+
+
+# Row-major arrays at least this wide are screened by chunks of rows.
+ROW_CHUNK_MIN_COLUMNS = 64
+ROW_CHUNK_MIN_ROWS = 16
+
+
+def _column_statistics(x, w, sw, n_eff, G) -> dict:
+    """:func:`_block_statistics` of every column, block by block."""
+    n, p = x.shape
+    if is_streamed(x):
+        parts = x.map_blocks(_block_statistics, w, sw, n_eff, G)
+    elif x.flags.c_contiguous and p >= ROW_CHUNK_MIN_COLUMNS:
+        with one_blas_thread():
+            return _row_chunk_statistics(x, w, sw, n_eff, G)
+    else:
+        with one_blas_thread():
+            parts = [
+                _block_statistics(x[:, blk], w, sw, n_eff, G)
+                for blk in column_blocks(n, p, CACHE_BLOCK_ELEMENTS)
+            ]
+    return {
+        key: np.concatenate([part[key] for part in parts], axis=-1) for key in parts[0]
+    }
 
 
 def screen_columns(x, sw, n_eff, tolerance) -> Screen:
@@ -52,41 +221,25 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
     the first (which carries the intercept), columns collinear with the
     constant, and columns collinear with an earlier column (exact duplicates
     included; the first one is kept), and columns too large or too small for
-    double precision. One blockwise pass over ``x``.
+    double precision. One blockwise pass over ``x`` (an array or a
+    :class:`~.design.StreamedDesign`), then the few candidate pairs of
+    collinear columns are read again to be verified.
 
     All statistics refer to the columns multiplied by ``scale`` (a power of
     two per column bringing its largest magnitude into ``[0.5, 1)``).
     """
     n, p = x.shape
     w = sw**2
-    finite = np.ones(p, dtype=bool)
-    exact_const = np.zeros(p, dtype=bool)
-    mean = np.zeros(p)
-    cn2 = np.zeros(p)
-    fprint = np.zeros(p)
-    max_abs = np.zeros(p)
-    scale = np.ones(p)
-    # A fixed random direction: collinear columns have equal |fingerprint|.
-    g = np.random.default_rng(20240601).standard_normal(n)
-    for blk in column_blocks(n, p):
-        B = x[:, blk]
-        fin = np.all(np.isfinite(B), axis=0)
-        finite[blk] = fin
-        if not np.all(fin):
-            B = np.where(fin, B, 0.0)
-        top = np.maximum(B.max(axis=0), -B.min(axis=0))
-        sc = pow2_scale(top)
-        max_abs[blk] = top
-        scale[blk] = sc
-        exact_const[blk] = fin & np.all(B == B[:1], axis=0)
-        with np.errstate(over="ignore", invalid="ignore"):  # "huge" columns
-            m = (w @ B) / n_eff
-            C = B - m  # centred: accurate for near-constants
-        C *= sw[:, None]
-        C *= sc  # scaled before squaring (exact: powers of two)
-        mean[blk] = m * sc
-        cn2[blk] = np.einsum("ij,ij->j", C, C)
-        fprint[blk] = g @ C
+    G = _fingerprint_rows(n)
+    stats = _column_statistics(x, w, sw, n_eff, G)
+    finite = stats["finite"]
+    exact_const = stats["exact_const"]
+    mean, cn2, max_abs, scale = (
+        stats["mean"],
+        stats["cn2"],
+        stats["max_abs"],
+        stats["scale"],
+    )
     un2 = np.where(finite, cn2 + n_eff * mean**2, 0.0)
     allzero = finite & (un2 == 0)
     excluded = {}
@@ -111,38 +264,15 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
     for j in np.flatnonzero(exact_const & ~allzero):
         if carrier is None:
             carrier = int(j)
-            carrier_value = float(x[0, j])
+            carrier_value = float(stats["first"][j])
         else:
             excluded[int(j)] = f"constant (the intercept is carried by f{carrier})"
     near_const = finite & ~allzero & ~exact_const & (cn2 <= tolerance**2 * un2)
     for j in np.flatnonzero(near_const):
         excluded[int(j)] = "collinear with the constant"
     ok = finite & ~allzero & ~exact_const & ~near_const & ~huge & ~tiny
-    fprint = np.abs(safe_ratio(fprint, np.sqrt(cn2)))
-
-    # Pairwise collinearity: candidate pairs have close fingerprints (within
-    # ||g|| * 4 * tolerance, plus rounding); each candidate pair is then
-    # verified on the centred columns.
-    idx = np.flatnonzero(ok)
-    order = idx[np.argsort(fprint[idx], kind="stable")]
-    a = fprint[order]
-    window = np.linalg.norm(g) * 4.0 * tolerance + 1e-9 * (1.0 + a)
-    hi = np.searchsorted(a, a + window, side="right")
-    for s in np.flatnonzero(hi > np.arange(a.size) + 1):
-        if int(order[s]) in excluded:
-            continue  # its partners are found from the column it repeats
-        for t in range(s + 1, hi[s]):
-            i, j = sorted((int(order[s]), int(order[t])))
-            if j in excluded:
-                continue
-            ui = (x[:, i] * scale[i] - mean[i]) * sw / np.sqrt(cn2[i])
-            uj = (x[:, j] * scale[j] - mean[j]) * sw / np.sqrt(cn2[j])
-            resid = uj - (ui @ uj) * ui
-            if np.linalg.norm(resid) < tolerance:
-                if np.array_equal(x[:, i], x[:, j]):
-                    excluded[j] = f"duplicate of f{i}"
-                else:
-                    excluded[j] = f"collinear with f{i}"
+    fprints = np.abs(safe_ratio(stats["fprint"], np.sqrt(cn2)))
+    _set_aside_collinear(x, sw, G, fprints, ok, mean, scale, cn2, tolerance, excluded)
     eligible = ok.copy()
     eligible[list(excluded)] = False
     return Screen(
@@ -155,3 +285,58 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
         un2=np.where(eligible, un2, 0.0),
         scale=scale,
     )
+
+
+def _pairs_within(a, window):
+    """Index pairs ``(s, t)``, ``s < t``, with ``a[t] - a[s] <= window[s]`` (``a``
+    sorted), in the order of a double loop over ``s`` then ``t``."""
+    hi = np.searchsorted(a, a + window, side="right")
+    counts = np.maximum(hi - np.arange(a.size) - 1, 0)
+    s = np.repeat(np.arange(a.size), counts)
+    start = np.cumsum(counts) - counts
+    t = s + 1 + (np.arange(s.size) - np.repeat(start, counts))
+    return s, t
+
+
+def _set_aside_collinear(x, sw, G, fprints, ok, mean, scale, cn2, tol, excluded):
+    """Add the columns collinear with an earlier one to ``excluded``.
+
+    Collinear columns have equal |fingerprint| along every direction of
+    ``G`` (within ``||g|| * 4 * tolerance``, plus rounding). Pairs close in
+    the first fingerprint (sorted) are candidates; those the other
+    fingerprints rule out could not pass the check either, so they are
+    skipped (wide libraries have many near pairs in one fingerprint and
+    almost none in two). Each remaining pair is verified on the centred
+    columns, in the order of the first fingerprint.
+    """
+    idx = np.flatnonzero(ok)
+    order = idx[np.argsort(fprints[0, idx], kind="stable")]
+    a = fprints[0, order]
+    g_norm = np.linalg.norm(G, axis=1)
+    window = g_norm[0] * 4.0 * tol + 1e-9 * (1.0 + a)
+    s_of, t_of = _pairs_within(a, window)
+    for row in range(1, G.shape[0]):
+        f = fprints[row]
+        fs, ft = f[order[s_of]], f[order[t_of]]
+        win = g_norm[row] * 4.0 * tol + 1e-9 * (1.0 + np.maximum(fs, ft))
+        keep = np.abs(fs - ft) <= win
+        s_of, t_of = s_of[keep], t_of[keep]
+    current, skip = -1, False
+    for s, t in zip(s_of.tolist(), t_of.tolist()):
+        if s != current:
+            current = s
+            skip = int(order[s]) in excluded
+        if skip:
+            continue  # its partners are found from the column it repeats
+        i, j = sorted((int(order[s]), int(order[t])))
+        if j in excluded:
+            continue
+        pair = x[:, [i, j]]
+        ui = (pair[:, 0] * scale[i] - mean[i]) * sw / np.sqrt(cn2[i])
+        uj = (pair[:, 1] * scale[j] - mean[j]) * sw / np.sqrt(cn2[j])
+        resid = uj - (ui @ uj) * ui
+        if np.linalg.norm(resid) < tol:
+            if np.array_equal(pair[:, 0], pair[:, 1]):
+                excluded[j] = f"duplicate of f{i}"
+            else:
+                excluded[j] = f"collinear with f{i}"

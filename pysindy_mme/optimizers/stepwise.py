@@ -30,9 +30,10 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
-from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_data, check_params
+from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_params
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
 from ._numeric import pow2_scale
+from .design import check_library
 from .final_fit import final_fit
 from .gram import selection_state
 from .moments import tall_moments
@@ -370,9 +371,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
 
         Parameters
         ----------
-        x_ : array-like (n_samples, n_features)
-            The library (pysindy's Theta). Columns with non-finite values are
-            set aside, not an error.
+        x_ : array-like, StreamedDesign or dask.array (n_samples, n_features)
+            The library (pysindy's Theta; streamed: read by column blocks,
+            never whole). Non-finite columns are set aside, not an error.
         y : array-like (n_samples,) or (n_samples, n_targets)
             Targets (time derivatives); must be finite.
         sample_weight : float or array-like (n_samples,), optional
@@ -387,10 +388,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self
         """
         params = check_params(self)
-        # predict's shape follows y's (scikit-learn's convention); coef_ stays
-        # 2-D, as pysindy's optimizers keep it
+        # predict's shape follows y's (scikit-learn's convention); coef_ 2-D
         y_ndim = array_ndim(y)
-        x, y, w, _ = check_data(x_, y, sample_weight)
+        x, y, w, feature_names = check_library(x_, y, sample_weight, feature_names)
         n_features = x.shape[1]
         self._y_ndim = y_ndim
         for label, names, size, what in (
