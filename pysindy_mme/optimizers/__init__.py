@@ -5,7 +5,11 @@ FloatingFStepwise())``). The modules, one job each:
 
 * :mod:`.design`: :class:`StreamedDesign`, a library read by column blocks;
 * :mod:`.screening`: library columns that can never be selected, and why;
+* :mod:`.least_squares_state`: coefficients and classic partial F-ratios
+  from a state's small factor, shared by the two states below;
 * :mod:`.incremental_qr`: the QR state from which partial F-ratios follow;
+* :mod:`.moments`, :mod:`.gram`: the same state from two passes' moments
+  (tall libraries: 20,000 rows or more, up to 16 columns);
 * :mod:`.selection`: the Phase I / Phase II machine over that state;
 * :mod:`.final_fit`: coefficients and ANOVA table of the chosen model;
 * :mod:`.rules`: which statistic meets which threshold (default and classic);

@@ -22,20 +22,15 @@ coordinates are its residual against the model.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
-from scipy.linalg.lapack import dtrtri
 
 from ._numeric import safe_ratio
 from .incremental_qr import IncrementalQR
+from .least_squares_state import EXACT_FIT_RTOL, LeastSquaresState
 from .moments import LibraryMoments, pair_vectors
 from .robust import ROBUST_CANDIDATES, classic_joint_f, small_sample_factor
 from .screening import Screen
 
 __all__ = ["GramState", "selection_state"]
-
-# Same meaning as in IncrementalQR: a target reproduced to this relative
-# accuracy is fitted to rounding level.
-EXACT_FIT_RTOL = 1e-12
 
 
 def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scale):
@@ -48,7 +43,7 @@ def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scal
     return IncrementalQR(x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale)
 
 
-class GramState:
+class GramState(LeastSquaresState):
     """Least-squares state of one target during selection, from moments.
 
     Parameters
@@ -93,10 +88,6 @@ class GramState:
         self.sst = self.sse()
 
     # ------------------------------------------------------------- the model
-    @property
-    def k(self) -> int:
-        return len(self.support)
-
     def _factor(self, support):
         """``(G, T, z, ey, xp)`` of the model ``support`` (``O(m^3)``).
 
@@ -148,60 +139,6 @@ class GramState:
     # ------------------------------------------------------ classic statistics
     def sse(self) -> float:
         return float(self.ey @ self.ey)
-
-    def exact_fit(self) -> bool:
-        return self.sse() <= self.floor2
-
-    def coefficients(self) -> np.ndarray:
-        """Least-squares coefficients of ``[constant, support...]`` (data units)."""
-        beta = scipy.linalg.solve_triangular(self.T, self.z)
-        with np.errstate(over="ignore"):
-            beta *= self.y_unit
-            beta[1:] *= self.scale[self.support]
-        return beta
-
-    def coefficient_row(self) -> np.ndarray:
-        beta = self.coefficients()
-        row = np.zeros(self.in_model.size)
-        row[self.support] = beta[1:]
-        if self.carrier is not None:
-            row[self.carrier] = beta[0] / self.carrier_value
-        return row
-
-    def overall_f(self) -> float:
-        k = self.k
-        if k == 0:
-            return 0.0
-        sse = self.sse()
-        return float(safe_ratio((self.sst - sse) / k, sse / (self.n_eff - k - 1)))
-
-    def _tinv(self, T=None):
-        T = self.T if T is None else T
-        tinv, info = dtrtri(T, lower=0)
-        if info != 0:  # pragma: no cover - T is nonsingular by construction
-            tinv = np.linalg.pinv(T)
-        return tinv
-
-    def in_model_f(self) -> np.ndarray:
-        """Classic partial F-ratios (eq. 20) of ``[constant, support...]``."""
-        tinv = self._tinv()
-        beta = tinv @ self.z
-        diag = np.einsum("ij,ij->i", tinv, tinv)
-        s2 = self.sse() / (self.n_eff - self.k - 1)
-        return safe_ratio(beta**2, s2 * diag)
-
-    def candidate_f(self) -> np.ndarray:
-        """Classic partial F-ratios of entry (eq. 19); ``-inf`` where not eligible."""
-        sse = self.sse()
-        dof_new = self.n_eff - self.k - 2
-        elig = self.eligible & ~self.in_model & (self.nr2 > self.tol2 * self.cn2)
-        if dof_new < 1:
-            elig[:] = False
-        with np.errstate(divide="ignore", invalid="ignore"):
-            red = np.where(elig, self.g**2 / np.where(elig, self.nr2, 1.0), 0.0)
-        red = np.minimum(red, sse)
-        f = safe_ratio(red * dof_new, np.maximum(sse - red, 0.0))
-        return np.where(elig, f, -np.inf)
 
     # ------------------------------------------------------- robust statistics
     def _long_run_variance(self, a, b) -> np.ndarray:

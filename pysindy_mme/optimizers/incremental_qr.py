@@ -10,10 +10,9 @@ the state in place.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
-from scipy.linalg.lapack import dtrtri
 
-from ._numeric import EPS, safe_ratio
+from ._numeric import EPS
+from .least_squares_state import EXACT_FIT_RTOL, LeastSquaresState
 from .robust import (
     classic_joint_f,
     lag1_autocorrelation,
@@ -25,13 +24,8 @@ from .screening import Screen, xt
 
 __all__ = ["IncrementalQR"]
 
-# A target reproduced to this relative accuracy is fitted to rounding level:
-# partial F-ratios computed from a rounding-noise residual are meaningless, so
-# no further function may enter.
-EXACT_FIT_RTOL = 1e-12
 
-
-class IncrementalQR:
+class IncrementalQR(LeastSquaresState):
     """Incremental least-squares state of one target during selection.
 
     With ``X`` the weighted library (rows scaled by ``sqrt(w)``) and ``S`` the
@@ -87,78 +81,14 @@ class IncrementalQR:
         self.nr2 = self.cn2.copy()
         self._exact_g()
 
-    @property
-    def k(self) -> int:
-        return len(self.support)
-
     def sse(self) -> float:
         return float(self.e @ self.e)
-
-    def exact_fit(self) -> bool:
-        return self.sse() <= self.floor2
 
     def _exact_g(self):
         """``g = X^T e`` by a product with the library (resets rounding drift)."""
         self.g = xt(self.x, self.sw * self.e, self.eligible) * self.scale
         self.g[self.in_model] = 0.0
         self.g_sse = self.sse()
-
-    def coefficients(self) -> np.ndarray:
-        """Least-squares coefficients of ``[constant, support...]`` (data units).
-
-        A coefficient beyond the double range (a target in units of ``2**600``
-        on a column in units of ``2**-600``) is ``inf`` here, as in ``coef_``:
-        the selection works on scaled data and is unaffected.
-        """
-        beta = scipy.linalg.solve_triangular(self.T, self.z)
-        with np.errstate(over="ignore"):
-            beta *= self.y_unit
-            beta[1:] *= self.scale[self.support]
-        return beta
-
-    def coefficient_row(self) -> np.ndarray:
-        """Coefficients on every library column; the constant on its carrier column.
-
-        (Without a carrier column the constant is left out: ``coef_``'s meaning.)
-        """
-        beta = self.coefficients()
-        row = np.zeros(self.in_model.size)
-        row[self.support] = beta[1:]
-        if self.carrier is not None:
-            row[self.carrier] = beta[0] / self.carrier_value
-        return row
-
-    def overall_f(self) -> float:
-        """Model F-ratio MSR / MSE (eq. 10); 0 for the constant-only model."""
-        k = self.k
-        if k == 0:
-            return 0.0
-        sse = self.sse()
-        return float(safe_ratio((self.sst - sse) / k, sse / (self.n_eff - k - 1)))
-
-    def in_model_f(self) -> np.ndarray:
-        """Partial F-ratios (eq. 20) of ``[constant, support...]``: ``t**2``."""
-        k = self.k
-        Tinv, info = dtrtri(self.T, lower=0)
-        if info != 0:  # pragma: no cover - T is nonsingular by construction
-            Tinv = np.linalg.pinv(self.T)
-        beta = Tinv @ self.z
-        diag = np.einsum("ij,ij->i", Tinv, Tinv)
-        s2 = self.sse() / (self.n_eff - k - 1)
-        return safe_ratio(beta**2, s2 * diag)
-
-    def candidate_f(self) -> np.ndarray:
-        """Partial F-ratios of entry (eq. 19); ``-inf`` where not eligible."""
-        sse = self.sse()
-        dof_new = self.n_eff - self.k - 2
-        elig = self.eligible & ~self.in_model & (self.nr2 > self.tol2 * self.cn2)
-        if dof_new < 1:
-            elig[:] = False
-        with np.errstate(divide="ignore", invalid="ignore"):
-            red = np.where(elig, self.g**2 / np.where(elig, self.nr2, 1.0), 0.0)
-        red = np.minimum(red, sse)
-        f = safe_ratio(red * dof_new, np.maximum(sse - red, 0.0))
-        return np.where(elig, f, -np.inf)
 
     def _grow(self):
         cap = self.Q.shape[1]
