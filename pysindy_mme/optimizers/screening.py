@@ -113,8 +113,11 @@ def _block_statistics(B, w, sw, n_eff, G):
         # one matrix-vector product per direction (the first as it always
         # was; a product with a few rows is much slower than that in BLAS)
         fprint = np.vstack([g @ C for g in G])
-    cn2 = np.where(late, cn2 * sc**2, cn2)
-    fprint = np.where(late, fprint * sc, fprint)
+    # (the scale of a column scaled before squaring may square past the
+    # double range: only the late columns' scales are squared)
+    late_sc = np.where(late, sc, 1.0)
+    cn2 = np.where(late, cn2 * late_sc**2, cn2)
+    fprint = np.where(late, fprint * late_sc, fprint)
     # a copy: a view would keep the whole block alive with the statistics
     first = B[0].copy() if B.shape[0] else np.zeros(B.shape[1])
     return dict(
