@@ -44,9 +44,9 @@ def _library(variables):
     return ps.GeneralizedLibrary([power], inputs_per_library=[variables])
 
 
-def _study(seed, variables, hidden=True):
-    machine = hysteretic_oscillator(**HELD_OUT)
-    record = machine.record(seed=seed, **RECORDING)
+def _study(seed, variables, hidden=True, constants=HELD_OUT, recording=RECORDING):
+    machine = hysteretic_oscillator(**constants)
+    record = machine.record(seed=seed, **recording)
     options = dict(
         u=record.u,
         assumed_model=machine.assumed_model,
@@ -67,18 +67,18 @@ def _study(seed, variables, hidden=True):
         return discover(record.y, record.t, **grouped_keywords(options))
 
 
-def _law_found(res) -> tuple:
+def _law_found(res, law=LAW) -> tuple:
     terms = res.terms.get("z", {})
     errors = {
         name: abs(terms[name] / value - 1) if name in terms else np.inf
-        for name, value in LAW.items()
+        for name, value in law.items()
     }
     ok = (
-        set(terms) == set(LAW)
+        set(terms) == set(law)
         and set(res.terms) <= {"z"}
         and all(e <= 0.02 for e in errors.values())
     )
-    return ok, errors, sorted(set(terms) - set(LAW))
+    return ok, errors, sorted(set(terms) - set(law))
 
 
 @pytest.mark.slow
@@ -113,3 +113,24 @@ def test_without_the_state_the_study_names_a_missing_state():
         lines.append(f"seed {seed}: {res.conclusion}, missing state named: {said}")
     print(f"\n[y, v] only: missing state named in {named}/10\n" + "\n".join(lines))
     assert named >= 9
+
+
+@pytest.mark.slow
+def test_the_law_through_a_fit_that_does_not_join_yet():
+    """Development constants (the machine's defaults), seed 3, library of (y,
+    v, z): the confirmation reaches the law through a fit of v, z, |y| v and
+    |v| z whose trajectory does not quite join (largest defect 1e-3). A rule
+    that refused every such fit lost |v| z and v |z| here for two sessions
+    unnoticed (``bench_hidden_state.py`` found it); the fit is taken because
+    its model, run as a model, still improves significantly on the current one.
+    """
+    machine = hysteretic_oscillator()
+    p = machine.true_parameters
+    law = {
+        "v": -p["alpha"] / p["m"],
+        "|v| z": -p["beta"] * p["gamma"],
+        "v |z|": p["beta"] * p["delta"],
+    }
+    res = _study(3, [0, 1, 2], constants={}, recording={})
+    ok, errors, extra = _law_found(res, law)
+    assert ok, (errors, extra, res.terms)
