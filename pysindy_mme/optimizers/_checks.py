@@ -34,10 +34,6 @@ class InvalidParameterError(ValueError, TypeError):
     """
 
 
-def _is_bool(value) -> bool:
-    return isinstance(value, (bool, np.bool_))
-
-
 _POSITIVE = Interval(0.0, None, closed="neither")
 _LEVEL = Interval(0.0, 1.0, closed="neither")
 
@@ -152,7 +148,7 @@ def _check_no_ignored(opt, params) -> None:
             "but f_enter or alpha_enter selects the classic rule, which has "
             "none: give alpha, or f_enter / alpha_enter, not both"
         )
-    if _is_bool(opt.floating) and not opt.floating:
+    if Boolean().accepts(opt.floating) and not opt.floating:
         if params["float_ratio"] != DEFAULT_FLOAT_RATIO:
             raise ValueError(
                 f"float_ratio={params['float_ratio']} sets Phase II's threshold, "
