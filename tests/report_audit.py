@@ -17,7 +17,9 @@ Claims checked in the report text:
   the initial states, as the line says;
 * an equation called "consistent with the data" comes with a whole model
   that passes its own consistency test;
-* every "chi2 = ... over N residuals" names the true residual count.
+* every "chi2 = ... over N residuals" names the true residual count;
+* a ``parameters={...}`` the advice suggests names only the study's own
+  grey-box parameters (it once suggested ``'M'`` to every model).
 
 Numbers: the in-sample and out-of-sample RMSE of both models equal, within
 1 %, a free run written here (classical RK4 with the study's number of steps
@@ -319,6 +321,14 @@ def audit_report(res) -> None:
             assert dof == n_res - n0 == res.consistency_dof, line
         for m in re.finditer(r"over (\d+) residuals", line):
             assert int(m.group(1)) == n_obs, line
+    # suggested parameters are the study's own
+    own = set(res.study.parameter_names)
+    for m in re.finditer(r"parameters=\{([^}]*)\}", text):
+        named = set(re.findall(r"'([^']+)':", m.group(1)))
+        assert named <= own, (
+            f"the advice suggests parameters {sorted(named - own)} the model does "
+            f"not have ({sorted(own)}): {m.group(0)}"
+        )
     # an equation called consistent comes with a model that passes its test
     if "the assumed equation is consistent with the data" in text:
         assert res.consistency_p_value >= res.alpha, (

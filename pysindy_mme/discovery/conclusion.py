@@ -207,6 +207,9 @@ class Evidence:
         Sentences naming undetermined quantities.
     parameters : list of str
         Sentences naming runaway or bounded parameters.
+    parameter_advice : str or None
+        What to try for them, in the user's parameter names (bounds that
+        keep each where its guess says it belongs).
     noise_doubt : str or None
         Why the noise level is not known, if it is not.
     overshoots : list of Overshoot
@@ -232,6 +235,7 @@ class Evidence:
     out_converged: bool = True
     unidentified: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
+    parameter_advice: str | None = None
     noise_doubt: str | None = None
     overshoots: list = field(default_factory=list)
     memory: list = field(default_factory=list)
@@ -339,7 +343,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
         advice.append(_TRY["identify"])
     if ev.parameters:
         blockers += list(ev.parameters)
-        advice.append(_TRY["parameters"])
+        advice.append(ev.parameter_advice or _TRY["parameters"])
     if ev.noise_doubt:
         blockers.append(ev.noise_doubt)
         advice.append(_TRY["noise"])
@@ -467,8 +471,9 @@ _TRY = {
         "model), or measure the hidden state"
     ),
     "parameters": (
-        "bounds on the parameters (parameters={'M': (90.0, 50.0, 200.0)}) or a "
-        "library without terms that re-do them"
+        "bounds on the grey-box parameters from what you know of them "
+        "(parameters={name: (guess, lower, upper)}) or a library without terms "
+        "that re-do them"
     ),
     "validation": "a validation record (validation=(y, t[, u]))",
     "look": (

@@ -343,6 +343,7 @@ def _evidence(
     fit = confirmation.fit or assumed.fit
     noise = study.noise_doubt
     k0 = len(study.parameter_names)
+    doubts, doubt_advice = _parameter_doubts(study, fit)
     return Evidence(
         contradicted=bool(assumed.p_value < study.alpha),
         consistency=(
@@ -363,7 +364,8 @@ def _evidence(
         unidentified=[str(t) for t in trade_offs if not t.gauge]
         + _undetermined(fit, names),
         gauges=[str(t) for t in trade_offs if t.gauge],
-        parameters=_parameter_doubts(study, fit),
+        parameters=doubts,
+        parameter_advice=doubt_advice,
         noise_doubt=noise,
         overshoots=list(crossed),
         memory=[
@@ -418,30 +420,66 @@ def _undetermined(fit, names) -> list:
     return out
 
 
-def _parameter_doubts(study, fit) -> list:
-    """Grey-box parameters that ran away from the guess or sit on a bound."""
-    out = []
+def _parameter_doubts(study, fit) -> tuple:
+    """Grey-box parameters that ran away from the guess or sit on a bound.
+
+    Returns ``(sentences, advice)``: a sentence per parameter, and the
+    advice for them written in the user's own parameter names (the bounds
+    that would keep each one where its guess says it belongs), or None.
+    """
+    out, bounds, on_bound = [], {}, []
     gauge = study.parameter_gauge
+    limits = np.asarray(study.parameter_bounds, dtype=float)
     for k, name in enumerate(study.parameter_names):
         guess, value = float(study.parameter_init[k]), float(fit.physical[k])
         if gauge[k]:
             continue  # held at the guess on purpose (a gauge), said apart
         if fit.at_bound[k]:
             out.append(f"{name} = {sig(value)} sits on its bound")
+            on_bound.append(name)
             continue
         if guess == 0.0 or not np.isfinite(value):
             continue
         ratio = value / guess
+        lower, upper = limits[k] if k < len(limits) else (-np.inf, np.inf)
         if ratio < 0:
             out.append(
                 f"{name} changed sign: {sig(guess)} guessed, {sig(value)} fitted"
             )
+            # keep the guess's sign, and whatever bound the user gave
+            lower, upper = (max(lower, 0.0), upper) if guess > 0 else (lower, 0.0)
+            bounds[name] = (guess, lower, upper)
         elif ratio > RUNAWAY_FACTOR or ratio < 1.0 / RUNAWAY_FACTOR:
             out.append(
                 f"{name} moved from the guess {sig(guess)} to {sig(value)} "
                 f"({sig(ratio, 3)}x): it has most likely absorbed a missing effect"
             )
-    return out
+            a, b = sorted((guess / RUNAWAY_FACTOR, guess * RUNAWAY_FACTOR))
+            bounds[name] = (guess, max(lower, a), min(upper, b))
+    return out, _parameter_advice(bounds, on_bound)
+
+
+def _bound_text(value) -> str:
+    return "None" if not np.isfinite(value) else sig(value)
+
+
+def _parameter_advice(bounds: dict, on_bound: list):
+    """The advice for doubtful parameters, in the user's names; None if none."""
+    parts = []
+    if bounds:
+        spec = ", ".join(
+            f"'{name}': ({sig(g)}, {_bound_text(lo)}, {_bound_text(hi)})"
+            for name, (g, lo, hi) in bounds.items()
+        )
+        parts.append(
+            f"bounds from what you know of the parameters (parameters={{{spec}}}, "
+            "with the other parameters as before)"
+        )
+    if on_bound:
+        parts.append(f"checking the bound of {', '.join(on_bound)}")
+    if not parts:
+        return None
+    return " or ".join(parts) + ", or a library without terms that re-do them"
 
 
 def _substeps(study, assumed, proposals, x_hat) -> int:
