@@ -126,6 +126,9 @@ class _Search:
         self.log, self.rejected = [], []
         self.tried = set()
         self.mme = None  # (x, d, physical): MME's estimate, see mme_trial
+        # (terms fitted together, terms the backward step left of them): a
+        # group that was fitted as a whole and pruned is not refitted
+        self.pruned = []
         self.steps_of = None  # fit -> RK4 steps its model needs, see accept
 
     # ------------------------------------------------------------ MME start
@@ -623,6 +626,12 @@ def _group_step(search: _Search, proposals, values) -> bool:
     if len(group) < 2:  # one term alone was already tried alone
         return False
     slots = search.slots + [slot for slot, _ in group]
+    if (frozenset(slots), frozenset(search.slots)) in search.pruned:
+        # this very group was fitted together with the current terms (the
+        # joint start) and the backward step removed it from that fit: the
+        # group fit would be the same fit, pruned by the same step (on a long
+        # record, a third of the confirmation's time)
+        return False
     best = None
     for start in ([0.0] * len(group), [value for _, value in group]):
         trial = search.refit(slots, [*search.fit.coefficients, *start], search.fit)
@@ -752,6 +761,7 @@ def confirm_terms(
 
 def _prune(search: _Search, alpha_term, min_effect) -> bool:
     """Backward elimination of the current terms; whether any left."""
+    before = frozenset(search.slots)
     slots, fit, removed = search.backward(search.slots, search.fit)
     for slot, p_val, effect in removed:
         why = (
@@ -766,6 +776,7 @@ def _prune(search: _Search, alpha_term, min_effect) -> bool:
             search.accept(slots, fit, force=True)
         else:
             search.slots, search.fit = [], search.assumed
+        search.pruned.append((before, frozenset(search.slots)))
     return bool(removed)
 
 
