@@ -52,6 +52,9 @@ class Screen:
     cn2: np.ndarray  # (p,) squared norms of the centred weighted columns
     un2: np.ndarray  # (p,) squared norms of the weighted columns
     scale: np.ndarray  # (p,) power of two each column is multiplied by
+    # (t, p) x^T v of the vectors ``products`` given to screen_columns (zero
+    # where not eligible), where the screen's pass computed them; else None
+    products: np.ndarray | None = None
 
 
 def xt(x, v, eligible):
@@ -138,7 +141,7 @@ def _unit_weights(sw) -> bool:
     return bool(np.all(sw == 1.0))
 
 
-def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
+def _row_chunk_statistics(x, w, sw, n_eff, G, V=None) -> dict:
     """:func:`_block_statistics` of a row-major array, in one fused pass.
 
     A wide array in row-major order is read once, by tiles of whole row
@@ -156,12 +159,16 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
     non-finite, all zero, or so large or small that squares could leave the
     double range) are read again by :func:`_centred_statistics`, the
     accurate two-pass arithmetic.
+
+    ``V`` (t, n), optional: vectors whose raw products ``x^T v`` the same
+    pass also computes (key ``"products"``, (t, p)).
     """
     n, p = x.shape
     unit = _unit_weights(sw)
-    M = np.vstack([w[None, :], G * sw])
+    n_g = G.shape[0]
+    M = np.vstack([w[None, :], G * sw] + ([] if V is None else [V]))
     hi, lo, ss, MR = _fused_pass(x, M, None if unit else w)
-    total, raw_fprint = MR[0], MR[1:]
+    total, raw_fprint = MR[0], MR[1 : 1 + n_g]
     fin = np.isfinite(hi) & np.isfinite(lo)
     # set-aside columns: any finite numbers (they are never used)
     hi, lo, total = (np.where(fin, v, 0.0) for v in (hi, lo, total))
@@ -193,6 +200,7 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
         cn2=cn2 * late_sc**2,
         fprint=fprint * late_sc,
         first=np.array(x[0], dtype=float) if n else np.zeros(p),
+        products=None if V is None else MR[1 + n_g :],
     )
 
 
@@ -205,8 +213,9 @@ def _fused_pass(x, M, w):
     runs on one thread meanwhile, see :func:`_column_statistics`).
     """
     n, p = x.shape
-    # at least one block per thread
-    width = max(1, min(FUSED_BLOCK_COLUMNS, -(-p // FUSED_WORKERS)))
+    # At least two blocks (one per core of a 2-core machine); the tiles do not
+    # depend on the number of threads, so neither do the sums.
+    width = max(1, min(FUSED_BLOCK_COLUMNS, -(-p // 2)))
     rows = max(1, CACHE_BLOCK_ELEMENTS // width)
     hi = np.full(p, -np.inf)
     lo = np.full(p, np.inf)
@@ -271,6 +280,9 @@ def _centred_statistics(x, cols, fin, m, sw, unit, late, sc, G):
     return cn2, fprint
 
 
+# At most this many vectors' products x^T v are computed in the screen's pass
+# (each adds a row to its matrix product).
+MAX_PRODUCTS = 8
 # Row-major arrays at least this wide are screened by chunks of rows.
 ROW_CHUNK_MIN_COLUMNS = 64
 ROW_CHUNK_MIN_ROWS = 16
@@ -284,14 +296,14 @@ FUSED_WORKERS = max(1, min(2, os.cpu_count() or 1))
 RAW_MAX_BITS_LOST = 6
 
 
-def _column_statistics(x, w, sw, n_eff, G) -> dict:
+def _column_statistics(x, w, sw, n_eff, G, V=None) -> dict:
     """:func:`_block_statistics` of every column, block by block."""
     n, p = x.shape
     if is_streamed(x):
         parts = x.map_blocks(_block_statistics, w, sw, n_eff, G)
     elif x.flags.c_contiguous and p >= ROW_CHUNK_MIN_COLUMNS:
         with one_blas_thread():
-            return _row_chunk_statistics(x, w, sw, n_eff, G)
+            return _row_chunk_statistics(x, w, sw, n_eff, G, V)
     else:
         with one_blas_thread():
             parts = [
@@ -303,7 +315,7 @@ def _column_statistics(x, w, sw, n_eff, G) -> dict:
     }
 
 
-def screen_columns(x, sw, n_eff, tolerance) -> Screen:
+def screen_columns(x, sw, n_eff, tolerance, products=None) -> Screen:
     """Set aside columns that can never be selected; find the intercept carrier.
 
     Set aside: non-finite values, all-zero columns, constant columns other than
@@ -316,11 +328,20 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
 
     All statistics refer to the columns multiplied by ``scale`` (a power of
     two per column bringing its largest magnitude into ``[0.5, 1)``).
+
+    ``products`` (t, n), optional: vectors ``v`` whose products ``x^T v``
+    (the unscaled columns; zero where not eligible) are wanted, such as the
+    first step's ``X^T e``. The pass of a wide row-major array computes them
+    for up to ``MAX_PRODUCTS`` vectors (:attr:`Screen.products`; None
+    otherwise), saving a read of the array.
     """
     n, p = x.shape
     w = sw**2
     G = _fingerprint_rows(n)
-    stats = _column_statistics(x, w, sw, n_eff, G)
+    V = None
+    if products is not None and len(products) <= MAX_PRODUCTS:
+        V = np.asarray(products, dtype=float).reshape(-1, n)
+    stats = _column_statistics(x, w, sw, n_eff, G, V)
     finite = stats["finite"]
     exact_const = stats["exact_const"]
     mean, cn2, max_abs, scale = (
@@ -373,6 +394,11 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
         cn2=np.where(eligible, cn2, 0.0),
         un2=np.where(eligible, un2, 0.0),
         scale=scale,
+        products=(
+            None
+            if stats.get("products") is None
+            else np.where(eligible, stats["products"], 0.0)
+        ),
     )
 
 
