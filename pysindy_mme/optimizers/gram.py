@@ -23,24 +23,38 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._numeric import safe_ratio
-from .incremental_qr import IncrementalQR
+from ._numeric import safe_ratio, scaled_target
+from .incremental_qr import IncrementalQR, initial_residual
 from .least_squares_state import EXACT_FIT_RTOL, LeastSquaresState
 from .moments import LibraryMoments, pair_vectors
 from .robust import ROBUST_CANDIDATES, classic_joint_f, small_sample_factor
 from .screening import Screen
 
-__all__ = ["GramState", "selection_state"]
+__all__ = ["GramState", "first_step_vectors", "selection_state"]
 
 
 def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scale):
     """The selection state of one target: from ``moments`` if there are any.
 
     ``yw``: the weighted target in its power-of-two units (``y_scale``).
+    ``screen.products``, if computed, holds row ``target`` of ``X^T (sw e)``
+    for the first step (see :func:`~.incremental_qr.initial_residual`).
     """
     if moments is not None and moments.usable[target]:
         return GramState(moments, target, screen, n_eff, tolerance, 1.0 / y_scale)
-    return IncrementalQR(x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale)
+    xt_e = None if screen.products is None else screen.products[target]
+    return IncrementalQR(
+        x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale, xt_e=xt_e
+    )
+
+
+def first_step_vectors(sw, y) -> np.ndarray:
+    """``sw * e`` of each target (column of ``y``): ``X^T`` of it is the first
+    step's ``X^T e`` (``e`` of the constant-only model, the target in its
+    power-of-two units as the selection scales it)."""
+    return np.array(
+        [sw * initial_residual(sw, scaled_target(t)[1] * sw)[2] for t in y.T]
+    ).reshape(-1, sw.size)
 
 
 class GramState(LeastSquaresState):

@@ -22,7 +22,22 @@ from .robust import (
 )
 from .screening import Screen, xt
 
-__all__ = ["IncrementalQR"]
+__all__ = ["IncrementalQR", "initial_residual"]
+
+
+def initial_residual(sw, yw):
+    """``(q0, z0, e)`` of the constant-only model of the weighted target ``yw``.
+
+    ``q0 = sw / ||sw||``, ``z0 = q0^T yw`` and the residual ``e = yw - q0 z0``,
+    projected twice. ``sw * e`` is the vector whose product with the library
+    gives the first step's ``X^T e`` (which the screen's pass can compute:
+    :func:`~.screening.screen_columns`'s ``products``).
+    """
+    q0 = sw / float(np.linalg.norm(sw))
+    z0 = q0 @ yw
+    e = yw - q0 * z0
+    e -= q0 * (q0 @ e)
+    return q0, z0, e
 
 
 class IncrementalQR(LeastSquaresState):
@@ -47,10 +62,16 @@ class IncrementalQR(LeastSquaresState):
     ``X`` here is the library with each column multiplied by ``scale`` (see
     :func:`~.screening.screen_columns`), applied on the fly; ``yw`` is the weighted
     target already scaled to unit magnitude, and ``y_unit`` the factor that
-    converts its coefficients back to the units of the data.
+    converts its coefficients back to the units of the data. ``xt_e``,
+    optional: ``x^T (sw e)`` of the constant-only model's residual ``e``
+    (:func:`initial_residual`) for the unscaled library, zero where not
+    eligible, if the screen computed it; otherwise a product with the
+    library computes it.
     """
 
-    def __init__(self, x, sw, yw, screen: Screen, n_eff, tolerance, y_unit=1.0):
+    def __init__(
+        self, x, sw, yw, screen: Screen, n_eff, tolerance, y_unit=1.0, xt_e=None
+    ):
         self.x = x
         self.scale = screen.scale
         self.y_unit = y_unit
@@ -70,16 +91,20 @@ class IncrementalQR(LeastSquaresState):
         self.Q = np.zeros((n, cap), order="F")
         self.C = np.zeros((cap, p))
         norm_sw = float(np.linalg.norm(sw))
-        self.Q[:, 0] = sw / norm_sw
+        self.Q[:, 0], z0, self.e = initial_residual(sw, yw)
         self.C[0] = np.where(self.eligible, screen.mean * norm_sw, 0.0)
         self.T = np.array([[norm_sw]])
-        self.z = np.array([self.Q[:, 0] @ yw])
-        self.e = yw - self.Q[:, 0] * self.z[0]
-        self.e -= self.Q[:, 0] * (self.Q[:, 0] @ self.e)
+        self.z = np.array([z0])
         self.floor2 = (EXACT_FIT_RTOL * float(np.linalg.norm(yw))) ** 2
         self.sst = self.sse()  # centred total sum of squares
         self.nr2 = self.cn2.copy()
-        self._exact_g()
+        if xt_e is None:
+            self._exact_g()
+        else:
+            # X^T (sw e) of the unscaled library, zero where not eligible,
+            # from the screen's pass (the same product _exact_g makes)
+            self.g = xt_e * self.scale
+            self.g_sse = self.sse()
 
     def sse(self) -> float:
         return float(self.e @ self.e)

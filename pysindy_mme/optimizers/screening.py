@@ -10,6 +10,8 @@ statistics the incremental QR state starts from.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +52,9 @@ class Screen:
     cn2: np.ndarray  # (p,) squared norms of the centred weighted columns
     un2: np.ndarray  # (p,) squared norms of the weighted columns
     scale: np.ndarray  # (p,) power of two each column is multiplied by
+    # (t, p) x^T v of the vectors ``products`` given to screen_columns (zero
+    # where not eligible), where the screen's pass computed them; else None
+    products: np.ndarray | None = None
 
 
 def xt(x, v, eligible):
@@ -136,29 +141,34 @@ def _unit_weights(sw) -> bool:
     return bool(np.all(sw == 1.0))
 
 
-def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
-    """:func:`_block_statistics` of a row-major array, by chunks of whole rows.
+def _row_chunk_statistics(x, w, sw, n_eff, G, V=None) -> dict:
+    """:func:`_block_statistics` of a row-major array, in one fused pass.
 
-    A wide array in row-major order is read contiguously this way: one pass
-    for the extremes and the means, one for the centred squares and the
-    fingerprints (a column block would have to be transposed first, which
-    costs more than both passes).
+    A wide array in row-major order is read once, by tiles of whole row
+    segments (a few rows of a block of columns, small enough to stay in a
+    core's cache while it is read four times): largest and smallest values,
+    the raw weighted sums ``w^T x`` and ``w^T x^2`` and the raw fingerprint
+    products ``(g * sw)^T x``. The blocks of columns are shared among the
+    cores. The centred statistics then follow from the raw sums,
+
+        ||sw (x - m)||^2 = w^T x^2 - m w^T x,  g^T (sw (x - m)) = (g sw)^T x - m g^T sw,
+
+    which is accurate wherever the centred sum of squares is not much smaller
+    than the raw one (at most ``2**-RAW_MAX_BITS_LOST`` of it: at most that
+    many bits lost to cancellation). The other columns (near-constant,
+    non-finite, all zero, or so large or small that squares could leave the
+    double range) are read again by :func:`_centred_statistics`, the
+    accurate two-pass arithmetic.
+
+    ``V`` (t, n), optional: vectors whose raw products ``x^T v`` the same
+    pass also computes (key ``"products"``, (t, p)).
     """
     n, p = x.shape
-    # Each chunk also costs a few operations on vectors of length p (the
-    # running extremes and sums): at least ROW_CHUNK_MIN_ROWS rows keep them
-    # a small part of the work.
-    rows = max(ROW_CHUNK_MIN_ROWS, CACHE_BLOCK_ELEMENTS // p)
-    chunks = [slice(a, min(a + rows, n)) for a in range(0, n, rows)]
-    hi = np.full(p, -np.inf)
-    lo = np.full(p, np.inf)
-    total = np.zeros(p)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for c in chunks:
-            R = x[c]
-            np.maximum(hi, R.max(axis=0), out=hi)  # NaN propagates
-            np.minimum(lo, R.min(axis=0), out=lo)
-            total += w[c] @ R
+    unit = _unit_weights(sw)
+    n_g = G.shape[0]
+    M = np.vstack([w[None, :], G * sw] + ([] if V is None else [V]))
+    hi, lo, ss, MR = _fused_pass(x, M, None if unit else w)
+    total, raw_fprint = MR[0], MR[1 : 1 + n_g]
     fin = np.isfinite(hi) & np.isfinite(lo)
     # set-aside columns: any finite numbers (they are never used)
     hi, lo, total = (np.where(fin, v, 0.0) for v in (hi, lo, total))
@@ -166,14 +176,100 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
     sc = pow2_scale(top)
     with np.errstate(over="ignore", invalid="ignore"):
         m = total / n_eff
-    late = (top >= _LATE_MIN) & (top <= _LATE_MAX)
+        raw_cn2 = ss - total * m
+        late = (top >= _LATE_MIN) & (top <= _LATE_MAX)
+        raw = fin & late & (raw_cn2 > ss * 2.0**-RAW_MAX_BITS_LOST)
+        cn2 = np.where(raw, raw_cn2, 0.0)
+        fprint = np.where(raw, raw_fprint - np.outer(G @ sw, m), 0.0)
+    redo = np.flatnonzero(~raw)
+    if redo.size:
+        exact_cn2, exact_fprint = _centred_statistics(
+            x, redo, fin, m, sw, unit, late, sc, G
+        )
+        cn2[redo] = exact_cn2
+        fprint[:, redo] = exact_fprint
+    # (only the late columns' scales are squared: an early one may square
+    # past the double range)
+    late_sc = np.where(late, sc, 1.0)
+    return dict(
+        finite=fin,
+        exact_const=fin & (hi == lo),
+        max_abs=top,
+        scale=sc,
+        mean=m * sc,
+        cn2=cn2 * late_sc**2,
+        fprint=fprint * late_sc,
+        first=np.array(x[0], dtype=float) if n else np.zeros(p),
+        products=None if V is None else MR[1 + n_g :],
+    )
+
+
+def _fused_pass(x, M, w):
+    """Column extremes, ``M @ x`` and the weighted sums of squares of ``x``.
+
+    ``w`` None: unit weights. One read of ``x`` (row-major), by tiles of
+    ``rows x FUSED_BLOCK_COLUMNS``; the column blocks are shared among
+    ``FUSED_WORKERS`` threads (numpy and BLAS release the GIL; BLAS itself
+    runs on one thread meanwhile, see :func:`_column_statistics`).
+    """
+    n, p = x.shape
+    # At least two blocks (one per core of a 2-core machine); the tiles do not
+    # depend on the number of threads, so neither do the sums.
+    width = max(1, min(FUSED_BLOCK_COLUMNS, -(-p // 2)))
+    rows = max(1, CACHE_BLOCK_ELEMENTS // width)
+    hi = np.full(p, -np.inf)
+    lo = np.full(p, np.inf)
+    ss = np.zeros(p)
+    MR = np.zeros((M.shape[0], p))
+
+    def block(start):
+        cs = slice(start, min(start + width, p))
+        h, lw, s, mr = hi[cs], lo[cs], ss[cs], MR[:, cs]  # views: written in place
+        with np.errstate(over="ignore", invalid="ignore"):
+            for a in range(0, n, rows):
+                R = x[a : a + rows, cs]
+                np.maximum(h, R.max(axis=0), out=h)  # NaN propagates
+                np.minimum(lw, R.min(axis=0), out=lw)
+                if w is None:
+                    s += np.einsum("ij,ij->j", R, R)
+                else:
+                    s += w[a : a + rows] @ (R * R)
+                mr += M[:, a : a + rows] @ R
+
+    starts = range(0, p, width)
+    workers = min(FUSED_WORKERS, len(starts))
+    if workers > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(block, starts))
+    else:
+        for start in starts:
+            block(start)
+    return hi, lo, ss, MR
+
+
+def _centred_statistics(x, cols, fin, m, sw, unit, late, sc, G):
+    """Centred sums of squares and fingerprints of columns ``cols``, two-pass.
+
+    The accurate arithmetic for the columns the raw sums cannot give (see
+    :func:`_row_chunk_statistics`): each column minus its mean, weighted,
+    and multiplied by its power-of-two scale first where the squares could
+    leave the double range; by chunks of rows of ``x`` (row-major).
+    Returns ``(cn2, fprint)`` before the late scaling.
+    """
+    n, p = x.shape
+    every = cols.size == p
+    m, fin, late, sc = m[cols], fin[cols], late[cols], sc[cols]
     early_scale = None if np.all(late) else np.where(late, 1.0, sc)
-    unit = _unit_weights(sw)
-    cn2 = np.zeros(p)
-    fprint = np.zeros((G.shape[0], p))
+    all_fin = bool(np.all(fin))
+    rows = max(ROW_CHUNK_MIN_ROWS, CACHE_BLOCK_ELEMENTS // p)
+    cn2 = np.zeros(cols.size)
+    fprint = np.zeros((G.shape[0], cols.size))
     with np.errstate(over="ignore", invalid="ignore"):
-        for c in chunks:
-            R = x[c] if np.all(fin) else np.where(fin, x[c], 0.0)
+        for a in range(0, n, rows):
+            c = slice(a, min(a + rows, n))
+            R = x[c] if every else x[c][:, cols]
+            if not all_fin:
+                R = np.where(fin, R, 0.0)
             C = R - m
             if not unit:
                 C *= sw[c, None]
@@ -181,31 +277,33 @@ def _row_chunk_statistics(x, w, sw, n_eff, G) -> dict:
                 C *= early_scale
             cn2 += np.einsum("ij,ij->j", C, C)
             fprint += G[:, c] @ C  # one read of the chunk for all directions
-    return dict(
-        finite=fin,
-        exact_const=fin & (hi == lo),
-        max_abs=top,
-        scale=sc,
-        mean=m * sc,
-        cn2=np.where(late, cn2 * sc**2, cn2),
-        fprint=np.where(late, fprint * sc, fprint),
-        first=np.array(x[0], dtype=float) if n else np.zeros(p),
-    )
+    return cn2, fprint
 
 
+# At most this many vectors' products x^T v are computed in the screen's pass
+# (each adds a row to its matrix product).
+MAX_PRODUCTS = 8
 # Row-major arrays at least this wide are screened by chunks of rows.
 ROW_CHUNK_MIN_COLUMNS = 64
 ROW_CHUNK_MIN_ROWS = 16
+# The fused pass reads tiles of this many columns (times a few rows) ...
+FUSED_BLOCK_COLUMNS = 4096
+# ... on this many threads.
+FUSED_WORKERS = max(1, min(2, os.cpu_count() or 1))
+# The centred statistics come from the raw sums where cancellation loses at
+# most this many bits (relative error below 2**(RAW_MAX_BITS_LOST - 52) times
+# the rounding of the sums); the other columns are read again.
+RAW_MAX_BITS_LOST = 6
 
 
-def _column_statistics(x, w, sw, n_eff, G) -> dict:
+def _column_statistics(x, w, sw, n_eff, G, V=None) -> dict:
     """:func:`_block_statistics` of every column, block by block."""
     n, p = x.shape
     if is_streamed(x):
         parts = x.map_blocks(_block_statistics, w, sw, n_eff, G)
     elif x.flags.c_contiguous and p >= ROW_CHUNK_MIN_COLUMNS:
         with one_blas_thread():
-            return _row_chunk_statistics(x, w, sw, n_eff, G)
+            return _row_chunk_statistics(x, w, sw, n_eff, G, V)
     else:
         with one_blas_thread():
             parts = [
@@ -217,7 +315,7 @@ def _column_statistics(x, w, sw, n_eff, G) -> dict:
     }
 
 
-def screen_columns(x, sw, n_eff, tolerance) -> Screen:
+def screen_columns(x, sw, n_eff, tolerance, products=None) -> Screen:
     """Set aside columns that can never be selected; find the intercept carrier.
 
     Set aside: non-finite values, all-zero columns, constant columns other than
@@ -230,11 +328,20 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
 
     All statistics refer to the columns multiplied by ``scale`` (a power of
     two per column bringing its largest magnitude into ``[0.5, 1)``).
+
+    ``products`` (t, n), optional: vectors ``v`` whose products ``x^T v``
+    (the unscaled columns; zero where not eligible) are wanted, such as the
+    first step's ``X^T e``. The pass of a wide row-major array computes them
+    for up to ``MAX_PRODUCTS`` vectors (:attr:`Screen.products`; None
+    otherwise), saving a read of the array.
     """
     n, p = x.shape
     w = sw**2
     G = _fingerprint_rows(n)
-    stats = _column_statistics(x, w, sw, n_eff, G)
+    V = None
+    if products is not None and len(products) <= MAX_PRODUCTS:
+        V = np.asarray(products, dtype=float).reshape(-1, n)
+    stats = _column_statistics(x, w, sw, n_eff, G, V)
     finite = stats["finite"]
     exact_const = stats["exact_const"]
     mean, cn2, max_abs, scale = (
@@ -287,6 +394,11 @@ def screen_columns(x, sw, n_eff, tolerance) -> Screen:
         cn2=np.where(eligible, cn2, 0.0),
         un2=np.where(eligible, un2, 0.0),
         scale=scale,
+        products=(
+            None
+            if stats.get("products") is None
+            else np.where(eligible, stats["products"], 0.0)
+        ),
     )
 
 

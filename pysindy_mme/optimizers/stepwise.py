@@ -32,10 +32,10 @@ from sklearn.utils.validation import check_is_fitted
 from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_params
 from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
-from ._numeric import pow2_scale
+from ._numeric import scaled_target
 from .design import check_library
 from .final_fit import final_fit
-from .gram import selection_state
+from .gram import first_step_vectors, selection_state
 from .moments import tall_moments
 from .robust import rows_look_time_ordered
 from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
@@ -409,7 +409,10 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         keep = w > 0
         if not np.all(keep):
             x, y, w = x[keep], y[keep], w[keep]
-        screen = screen_columns(x, np.sqrt(w), float(w.sum()), params["tolerance"])
+        sw = np.sqrt(w)  # (the screen's pass also gives the first step's X^T e)
+        screen = screen_columns(
+            x, sw, float(w.sum()), params["tolerance"], first_step_vectors(sw, y)
+        )
         if isinstance(self.time_ordered, str):
             self.rows_in_time_order_ = rows_look_time_ordered(x, screen.eligible)
         else:
@@ -531,10 +534,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """Select and fit one target; returns its coefficient row and intercept."""
         n_eff = float(w.sum())
         sw = np.sqrt(w)
-        # The target in units of its largest magnitude (an exact power of two):
-        # squares can then neither overflow nor underflow.
-        y_scale = float(pow2_scale(np.max(np.abs(y), initial=0.0)))
-        yt = y * y_scale
+        y_scale, yt = scaled_target(y)  # in units of its largest magnitude
 
         def make_state():
             return selection_state(
