@@ -15,6 +15,7 @@ import numpy as np
 from ..core.integrate import HOLDS
 from ..differentiation.error_models import error_model_names
 from ..discovery.options import grouped_keywords
+from ..discovery.parameters import parameter_spec
 from ..protocols import KStepAhead
 from .loading import (
     UsageError,
@@ -140,7 +141,13 @@ _NAME = re.compile(r"^[A-Za-z_]\w*$")
 
 
 def parse_parameters(text: str) -> dict:
-    """``"k=1.0,c=0.1"`` -> ``{"k": 1.0, "c": 0.1}``, checked."""
+    """``"k=1.0,c=0.1:0:"`` -> ``{"k": 1.0, "c": (0.1, 0.0, None)}``, checked.
+
+    Each item is ``NAME=GUESS`` (unbounded) or ``NAME=GUESS:LOWER:UPPER``
+    with either bound left empty for none: the command line's form of
+    ``parameters={name: (guess, lower, upper)}``, which the study's advice
+    for a parameter that ran away or changed sign writes.
+    """
     out = {}
     for item in parse_names(text):
         name, eq, value = item.partition("=")
@@ -159,21 +166,46 @@ def parse_parameters(text: str) -> dict:
             raise UsageError(
                 f"--parameters: {name!r} is given twice; give each parameter once"
             )
-        try:
-            out[name] = float(value)
-        except ValueError:
-            raise UsageError(
-                f"--parameters: the value of {name!r}, {value.strip()!r}, is not a "
-                "number; e.g. --parameters k=1.0,c=0.1"
-            ) from None
-        if not np.isfinite(out[name]):
-            raise UsageError(
-                f"--parameters: the value of {name!r} must be a finite number, e.g. "
-                f"{name}=1.0"
-            )
+        out[name] = _parameter_value(name, value.strip())
     if not out:
         raise UsageError("--parameters: give NAME=VALUE pairs, e.g. k=1.0,c=0.1")
     return out
+
+
+def _parameter_value(name: str, text: str):
+    """``GUESS`` -> float; ``GUESS:LOWER:UPPER`` -> ``(guess, lower, upper)``."""
+    parts = [p.strip() for p in text.split(":")]
+    if len(parts) not in (1, 3) or not parts[0]:
+        raise UsageError(
+            f"--parameters: {name}={text} must be GUESS or GUESS:LOWER:UPPER (a "
+            f"bound may be left empty), e.g. {name}=1.0 or {name}=1.0:0:"
+        )
+    values = []
+    for part in parts:
+        try:
+            values.append(None if part == "" else float(part))
+        except ValueError:
+            raise UsageError(
+                f"--parameters: the value of {name!r}, {text!r}, is not a number; "
+                f"e.g. --parameters k=1.0,c=0.1 (bounds: {name}=1.0:0:10)"
+            ) from None
+    if not np.isfinite(values[0]):
+        raise UsageError(
+            f"--parameters: the value of {name!r} must be a finite number, e.g. "
+            f"{name}=1.0"
+        )
+    if len(values) == 1:
+        return values[0]
+    try:  # the study's own check: bounds in order, the guess inside them
+        parameter_spec(name, tuple(values))
+    except (TypeError, ValueError) as err:
+        raise UsageError(f"--{err}") from None
+    return tuple(values)
+
+
+def parameter_guesses(parameters: dict) -> dict:
+    """``{name: guess}`` of parsed ``--parameters`` (bounds dropped)."""
+    return {k: (v[0] if isinstance(v, tuple) else v) for k, v in parameters.items()}
 
 
 def parse_hidden_states(values, states, inputs) -> dict:
@@ -359,7 +391,7 @@ def _grey_box(args, kwargs) -> dict:
         return {}
     parameters = parse_parameters(args.parameters)
     kwargs["parameters"] = parameters
-    return parameters
+    return parameter_guesses(parameters)
 
 
 def _hidden(args, hidden, kwargs) -> None:

@@ -84,9 +84,10 @@ HELP = {
     "suggests it when the model error has memory no function of the states "
     "gives. Default: none. Example: --hidden-state z:velocity",
     "--parameters": "grey box: parameters of your model to estimate, with initial "
-    "guesses; the model is then f(x, t, u, p), p a dict name -> value (u is None "
-    "without --inputs). Default: none (the model is fixed). "
-    "Example: --parameters k=1.0,c=0.1",
+    "guesses, and bounds as GUESS:LOWER:UPPER (a bound may be left empty); the "
+    "model is then f(x, t, u, p), p a dict name -> value (u is None without "
+    "--inputs). Default: none (the model is fixed). "
+    "Example: --parameters k=1.0,c=0.1:0:",
     "--train-rows": "data rows to fit on, A:B (counted from 0 after the header, "
     "A included, B excluded; an end may be left out). Default: every row. "
     "Example: --train-rows 0:16000",

@@ -17,7 +17,10 @@ space (:mod:`.output_error`):
    then the proposals that failed alone are fitted as one group on top of
    what was kept (terms that matter only together: a hysteretic law
    ``z' = a v - b |v| z`` does nothing with either term alone), pruned
-   backward, and kept if the group improves the fit significantly;
+   backward, and kept if the group improves the fit significantly (a
+   group the backward step has just removed from a fit of exactly the
+   kept terms plus that group, the joint start's false proposals, is not
+   fitted again);
 2. swap: each term is taken out and the look-alike library functions of its
    equation (most correlated along the current trajectory) put in instead;
    a pair of terms of one equation may be merged into the single function

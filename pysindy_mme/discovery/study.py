@@ -463,6 +463,10 @@ def _bound_text(value) -> str:
     return "None" if not np.isfinite(value) else sig(value)
 
 
+def _flag_bound(value) -> str:
+    return "" if not np.isfinite(value) else sig(value)
+
+
 def _parameter_advice(bounds: dict, on_bound: list):
     """The advice for doubtful parameters, in the user's names; None if none."""
     parts = []
@@ -471,9 +475,14 @@ def _parameter_advice(bounds: dict, on_bound: list):
             f"'{name}': ({sig(g)}, {_bound_text(lo)}, {_bound_text(hi)})"
             for name, (g, lo, hi) in bounds.items()
         )
+        flags = ",".join(
+            f"{name}={sig(g)}:{_flag_bound(lo)}:{_flag_bound(hi)}"
+            for name, (g, lo, hi) in bounds.items()
+        )
         parts.append(
             f"bounds from what you know of the parameters (parameters={{{spec}}}, "
-            "with the other parameters as before)"
+            f"with the other parameters as before; command line: --parameters "
+            f"{flags},...)"
         )
     if on_bound:
         parts.append(f"checking the bound of {', '.join(on_bound)}")

@@ -183,6 +183,21 @@ def test_grey_box_parameters_end_to_end(tmp_path):
     assert list(summary["terms"]["velocity"]) == ["position^3"]
 
 
+def test_grey_box_parameter_bounds_from_the_command_line(tmp_path):
+    """``--parameters c=0.07:0:0.08`` holds c below its true 0.1: on its bound."""
+    csv, model, _ = write_user_files(tmp_path)
+    out = tmp_path / "out"
+    argv = base_args(
+        csv, model, out, model=f"{model}:g", parameters="k=1.3:0:,c=0.07:0:0.08"
+    )
+    result = run(argv)
+    assert result.code == 0, result.err
+    summary = json.loads((out / "discovery.json").read_text())
+    c = summary["parameters"]["c"]
+    assert c["initial"] == 0.07 and c["value"] == pytest.approx(0.08)
+    assert "c = 0.08 sits on its bound" in (out / "report.txt").read_text()
+
+
 def test_only_warnings_for_the_user_are_printed():
     import warnings
 

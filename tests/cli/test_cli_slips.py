@@ -167,6 +167,16 @@ SLIPS = [
         ("--parameters: 'k' has no value", "e.g. --parameters k=1.0,c=0.1"),
     ),
     Slip(
+        "parameter bounds out of order",
+        {"parameters": "k=1.0:2:0,c=0.1", "model": "{tmp}/model.py:g"},
+        ("--parameters: k: the lower bound 2 must be below the upper bound 0",),
+    ),
+    Slip(
+        "parameter bounds with one missing field",
+        {"parameters": "k=1.0:0,c=0.1", "model": "{tmp}/model.py:g"},
+        ("--parameters: k=1.0:0 must be GUESS or GUESS:LOWER:UPPER",),
+    ),
+    Slip(
         "parameters for a model that takes none",
         {"parameters": "k=1.0"},
         ("--parameters: the model f must take (x, t, u, p)",),

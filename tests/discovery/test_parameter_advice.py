@@ -92,3 +92,14 @@ def test_gauges_and_quiet_parameters_give_no_advice():
     study = _study(["a", "b"], [1.0, 2.0], gauge=[True, False])
     sentences, advice = _parameter_doubts(study, _fit([-5.0, 2.2]))
     assert sentences == [] and advice is None
+
+
+def test_the_command_line_form_parses_to_the_same_bounds():
+    from pysindy_mme.cli.arguments import parse_parameters
+
+    study = _study(
+        ["a1", "a3", "m"], [0.03, 0.03, 90.0], bounds=[(-1, 1), (-1, 1), (0, 500)]
+    )
+    _, advice = _parameter_doubts(study, _fit([0.03, -0.0087, 4.7e4]))
+    flags = advice.split("command line: --parameters ", 1)[1].split(",...)", 1)[0]
+    assert parse_parameters(flags) == _spec(advice)
