@@ -38,9 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from threadpoolctl import threadpool_limits
 
-from ._numeric import BLOCK_ELEMENTS, pow2_scale
+from ._numeric import BLOCK_ELEMENTS, one_blas_thread, pow2_scale
 from .robust import WINDOW_ROWS, BartlettWindows
 
 __all__ = [
@@ -174,7 +173,7 @@ def library_moments(x, sw, y_scaled, screen, lags=None):
     # with several BLAS threads on a busy machine each call waits for its
     # threads (measured: 50 s instead of 4.5 s at a million rows, load 12 on
     # 2 cores); one thread loses little where the machine is idle.
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _library_moments(x, sw, y_scaled, screen, lags)
 
 
