@@ -52,32 +52,47 @@ __all__ = [
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
 
-# Band buffers of factors no longer alive, by shape, for the next
-# factorisation of that size (most recent last; at most _IDLE_MAX kept).
-_IDLE: dict = {}
+# Band buffers of factors no longer alive (flat, most recent last; at most
+# _IDLE_MAX kept), for the next factorisation that fits in one. Any buffer at
+# least as large serves, whatever the shape it was made for: the refits of a
+# held-out stretch (a band of 0.8 N samples) reuse the whole record's band
+# instead of allocating a second one next to it (576 instead of 320 bytes
+# per sample of two states at that stage of a study, its peak).
+_IDLE: list = []
 _IDLE_MAX = 2
 # factors may die in any thread (studies run in threads by a scheduler)
 _IDLE_LOCK = threading.Lock()
 
 
 def _take_band(shape) -> np.ndarray:
-    """A band buffer of ``shape`` to factorise in: an idle one or a new one.
+    """A band buffer of ``shape`` to factorise in: a view of the smallest idle
+    buffer that holds it, or a new one.
 
     The buffer belongs to the factor made in it until that factor is garbage
-    (:func:`_give_back`), so two live factors never share memory.
+    (:func:`_give_back`), so two live factors never share memory. When no
+    idle buffer is large enough, the idle ones are dropped before the new
+    one is allocated: they would only sit next to it.
     """
+    size = int(np.prod(shape))
     with _IDLE_LOCK:
-        band = _IDLE.pop(shape, None)
-    return np.empty(shape) if band is None else band
+        fits = [k for k, b in enumerate(_IDLE) if b.size >= size]
+        if fits:
+            flat = _IDLE.pop(min(fits, key=lambda k: _IDLE[k].size))
+        else:
+            _IDLE.clear()
+            flat = None
+    if flat is None:
+        flat = np.empty(size)
+    return flat[:size].reshape(shape)
 
 
-def _give_back(shape, band) -> None:
-    """Keep the buffer of a dead factor for the next factorisation."""
+def _give_back(band) -> None:
+    """Keep the (whole) buffer of a dead factor for the next factorisation."""
+    flat = band if band.base is None else band.base
     with _IDLE_LOCK:
-        _IDLE.pop(shape, None)
-        _IDLE[shape] = band
+        _IDLE.append(flat)
         while len(_IDLE) > _IDLE_MAX:
-            _IDLE.pop(next(iter(_IDLE)))
+            _IDLE.pop(0)
 
 
 @dataclass
@@ -143,16 +158,16 @@ class BandedKKT:
         try:
             lu, piv, info = self._factor_in(abT, Q, A, S)
         except BaseException:
-            _give_back(shape, abT)
+            _give_back(abT)
             raise
         udiag = np.abs(lu[diag])
         umax = float(np.max(udiag))
         if info > 0 or not (np.isfinite(umax) and umax > 0):
-            _give_back(shape, abT)
+            _give_back(abT)
             raise np.linalg.LinAlgError("singular KKT system")
         logdet = float(np.sum(np.log(udiag)))
         fac = KKTFactor(lu, piv, n, N, logdet, float(np.min(udiag)) / umax)
-        weakref.finalize(fac, _give_back, shape, abT)
+        weakref.finalize(fac, _give_back, abT)
         return fac
 
     def _factor_in(self, abT, Q, A, S):
