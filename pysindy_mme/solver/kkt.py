@@ -108,13 +108,27 @@ class KKTFactor:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``."""
-        kl = ku = 2 * self.n - 1
         shape = rhs.shape
-        flat = np.ascontiguousarray(rhs).reshape(self.N * 2 * self.n, -1)
-        sol, info = lapack.dgbtrs(self.lu, kl, ku, flat, self.piv)
+        # a Fortran-ordered copy (the caller's array stays as it was)
+        cols = np.array(np.reshape(rhs, (self.N * 2 * self.n, -1)), order="F")
+        sol = self.solve_in_place(cols)
+        return np.ascontiguousarray(sol).reshape(shape)
+
+    def solve_in_place(self, cols: np.ndarray) -> np.ndarray:
+        """Overwrite ``cols`` (Fortran-ordered, ``(N 2n, k)``) with ``K^-1 cols``.
+
+        LAPACK works on Fortran columns: a right-hand side in that order is
+        solved where it is, where a C-ordered one is copied in and the
+        answer copied out again (on a long record, with the parameters'
+        columns, each copy is as large as the band).
+        """
+        if not cols.flags.f_contiguous:  # pragma: no cover - a bug
+            raise ValueError("solve_in_place needs a Fortran-ordered array")
+        kl = ku = 2 * self.n - 1
+        sol, info = lapack.dgbtrs(self.lu, kl, ku, cols, self.piv, overwrite_b=1)
         if info != 0:  # pragma: no cover - a bug, not a user error
             raise RuntimeError(f"dgbtrs: illegal argument {-info}")
-        return sol.reshape(shape)
+        return sol
 
 
 class BandedKKT:
@@ -293,14 +307,29 @@ def solve_reduced(fac: KKTFactor, E, D, b, c) -> ReducedSolution:
     bb = b if multi else b[:, :, None]
     cc = c if multi else c[:, None]
     k = bb.shape[2]
-    sol = fac.solve(np.concatenate([bb, E], axis=2))
-    Kb, KE = sol[:, :, :k], sol[:, :, k:]
+    rows = bb.shape[0] * bb.shape[1]
+    # [b, E] as the Fortran columns LAPACK solves in place (its transpose
+    # in C order): one array, not a concatenation, its copy and the copy of
+    # the answer
+    work = np.empty((k + p, rows))
+    work[:k] = bb.reshape(rows, k).T
+    work[k:] = E.reshape(rows, p).T
+    sol = fac.solve_in_place(work.T)
+    Kb, KE = sol[:, :k], sol[:, k:]
     Ef = E.reshape(-1, p)
-    Sc = D - Ef.T @ KE.reshape(-1, p)
+    # C-ordered copies of the parameters' columns: the products below are
+    # those of the C-ordered answer, to the last bit
+    KE = np.ascontiguousarray(KE)
+    Sc = D - Ef.T @ KE
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
-    dtheta = inverse @ (cc - Ef.T @ Kb.reshape(-1, k))
-    z = Kb - np.einsum("kbp,pj->kbj", KE, dtheta)
+    dtheta = inverse @ (cc - Ef.T @ np.ascontiguousarray(Kb))
+    # z = Kb - KE dtheta, the products summed over the parameters in order
+    # (what einsum did on the C-ordered answer, to the last bit)
+    KEd = KE[:, :1] * dtheta[0]
+    for j in range(1, p):
+        KEd += KE[:, j : j + 1] * dtheta[j]
+    z = np.subtract(Kb, KEd, order="C").reshape(bb.shape)
     if not multi:
         z, dtheta = z[:, :, 0], dtheta[:, 0]
     return ReducedSolution(z, dtheta, Sc, deficient)
