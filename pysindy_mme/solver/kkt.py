@@ -52,14 +52,16 @@ __all__ = [
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
 
-# Band buffers of factors no longer alive (flat, most recent last; at most
-# _IDLE_MAX kept), for the next factorisation that fits in one. Any buffer at
-# least as large serves, whatever the shape it was made for: the refits of a
+# Band buffers of factors no longer alive (flat; at most _IDLE_MAX kept, the
+# largest), for the next factorisation that fits in one. Any buffer at least
+# as large serves, whatever the shape it was made for: the refits of a
 # held-out stretch (a band of 0.8 N samples) reuse the whole record's band
 # instead of allocating a second one next to it (576 instead of 320 bytes
-# per sample of two states at that stage of a study, its peak).
+# per sample of two states at that stage of a study, its peak). One idle
+# buffer only: after a stage where two factors lived at once (MME), a second
+# idle band would sit beside the one in use for the rest of the study.
 _IDLE: list = []
-_IDLE_MAX = 2
+_IDLE_MAX = 1
 # factors may die in any thread (studies run in threads by a scheduler)
 _IDLE_LOCK = threading.Lock()
 
@@ -91,8 +93,8 @@ def _give_back(band) -> None:
     flat = band if band.base is None else band.base
     with _IDLE_LOCK:
         _IDLE.append(flat)
-        while len(_IDLE) > _IDLE_MAX:
-            _IDLE.pop(0)
+        while len(_IDLE) > _IDLE_MAX:  # the largest stay: they serve any size
+            del _IDLE[min(range(len(_IDLE)), key=lambda k: _IDLE[k].size)]
 
 
 @dataclass

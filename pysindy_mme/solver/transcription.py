@@ -806,7 +806,15 @@ class MMESmoother(GaussNewton):
             theta = start.theta if start is not None and self.p else self.theta_init
             lin = self.linearize(x / s, d / se, self.project(theta))
         self._set_prior(W)
-        res = self._solve(W * np.outer(se, se), lin)
+        try:
+            res = self._solve(W * np.outer(se, se), lin)
+        finally:
+            # H^T R^-1 and H^T R^-1 H are kept for the iterations of one
+            # solve only: a finished fit keeps its solver for later
+            # statistics and warm starts, and on a long record a study
+            # holds several of them (48 bytes per sample each for two
+            # states); recomputing them is one einsum
+            self._HRQ = None
         # Back to the user's units. J is unit-free; the multipliers (of J / 2
         # against defects in x) scale as 1 / s; the density of the N_obs
         # observations given the n free initial states as 1 / (the product
