@@ -52,32 +52,49 @@ __all__ = [
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
 
-# Band buffers of factors no longer alive, by shape, for the next
-# factorisation of that size (most recent last; at most _IDLE_MAX kept).
-_IDLE: dict = {}
-_IDLE_MAX = 2
+# Band buffers of factors no longer alive (flat; at most _IDLE_MAX kept, the
+# largest), for the next factorisation that fits in one. Any buffer at least
+# as large serves, whatever the shape it was made for: the refits of a
+# held-out stretch (a band of 0.8 N samples) reuse the whole record's band
+# instead of allocating a second one next to it (576 instead of 320 bytes
+# per sample of two states at that stage of a study, its peak). One idle
+# buffer only: after a stage where two factors lived at once (MME), a second
+# idle band would sit beside the one in use for the rest of the study.
+_IDLE: list = []
+_IDLE_MAX = 1
 # factors may die in any thread (studies run in threads by a scheduler)
 _IDLE_LOCK = threading.Lock()
 
 
 def _take_band(shape) -> np.ndarray:
-    """A band buffer of ``shape`` to factorise in: an idle one or a new one.
+    """A band buffer of ``shape`` to factorise in: a view of the smallest idle
+    buffer that holds it, or a new one.
 
     The buffer belongs to the factor made in it until that factor is garbage
-    (:func:`_give_back`), so two live factors never share memory.
+    (:func:`_give_back`), so two live factors never share memory. When no
+    idle buffer is large enough, the idle ones are dropped before the new
+    one is allocated: they would only sit next to it.
     """
+    size = int(np.prod(shape))
     with _IDLE_LOCK:
-        band = _IDLE.pop(shape, None)
-    return np.empty(shape) if band is None else band
+        fits = [k for k, b in enumerate(_IDLE) if b.size >= size]
+        if fits:
+            flat = _IDLE.pop(min(fits, key=lambda k: _IDLE[k].size))
+        else:
+            _IDLE.clear()
+            flat = None
+    if flat is None:
+        flat = np.empty(size)
+    return flat[:size].reshape(shape)
 
 
-def _give_back(shape, band) -> None:
-    """Keep the buffer of a dead factor for the next factorisation."""
+def _give_back(band) -> None:
+    """Keep the (whole) buffer of a dead factor for the next factorisation."""
+    flat = band if band.base is None else band.base
     with _IDLE_LOCK:
-        _IDLE.pop(shape, None)
-        _IDLE[shape] = band
-        while len(_IDLE) > _IDLE_MAX:
-            _IDLE.pop(next(iter(_IDLE)))
+        _IDLE.append(flat)
+        while len(_IDLE) > _IDLE_MAX:  # the largest stay: they serve any size
+            del _IDLE[min(range(len(_IDLE)), key=lambda k: _IDLE[k].size)]
 
 
 @dataclass
@@ -93,13 +110,27 @@ class KKTFactor:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``."""
-        kl = ku = 2 * self.n - 1
         shape = rhs.shape
-        flat = np.ascontiguousarray(rhs).reshape(self.N * 2 * self.n, -1)
-        sol, info = lapack.dgbtrs(self.lu, kl, ku, flat, self.piv)
+        # a Fortran-ordered copy (the caller's array stays as it was)
+        cols = np.array(np.reshape(rhs, (self.N * 2 * self.n, -1)), order="F")
+        sol = self.solve_in_place(cols)
+        return np.ascontiguousarray(sol).reshape(shape)
+
+    def solve_in_place(self, cols: np.ndarray) -> np.ndarray:
+        """Overwrite ``cols`` (Fortran-ordered, ``(N 2n, k)``) with ``K^-1 cols``.
+
+        LAPACK works on Fortran columns: a right-hand side in that order is
+        solved where it is, where a C-ordered one is copied in and the
+        answer copied out again (on a long record, with the parameters'
+        columns, each copy is as large as the band).
+        """
+        if not cols.flags.f_contiguous:  # pragma: no cover - a bug
+            raise ValueError("solve_in_place needs a Fortran-ordered array")
+        kl = ku = 2 * self.n - 1
+        sol, info = lapack.dgbtrs(self.lu, kl, ku, cols, self.piv, overwrite_b=1)
         if info != 0:  # pragma: no cover - a bug, not a user error
             raise RuntimeError(f"dgbtrs: illegal argument {-info}")
-        return sol.reshape(shape)
+        return sol
 
 
 class BandedKKT:
@@ -143,16 +174,16 @@ class BandedKKT:
         try:
             lu, piv, info = self._factor_in(abT, Q, A, S)
         except BaseException:
-            _give_back(shape, abT)
+            _give_back(abT)
             raise
         udiag = np.abs(lu[diag])
         umax = float(np.max(udiag))
         if info > 0 or not (np.isfinite(umax) and umax > 0):
-            _give_back(shape, abT)
+            _give_back(abT)
             raise np.linalg.LinAlgError("singular KKT system")
         logdet = float(np.sum(np.log(udiag)))
         fac = KKTFactor(lu, piv, n, N, logdet, float(np.min(udiag)) / umax)
-        weakref.finalize(fac, _give_back, shape, abT)
+        weakref.finalize(fac, _give_back, abT)
         return fac
 
     def _factor_in(self, abT, Q, A, S):
@@ -278,14 +309,29 @@ def solve_reduced(fac: KKTFactor, E, D, b, c) -> ReducedSolution:
     bb = b if multi else b[:, :, None]
     cc = c if multi else c[:, None]
     k = bb.shape[2]
-    sol = fac.solve(np.concatenate([bb, E], axis=2))
-    Kb, KE = sol[:, :, :k], sol[:, :, k:]
+    rows = bb.shape[0] * bb.shape[1]
+    # [b, E] as the Fortran columns LAPACK solves in place (its transpose
+    # in C order): one array, not a concatenation, its copy and the copy of
+    # the answer
+    work = np.empty((k + p, rows))
+    work[:k] = bb.reshape(rows, k).T
+    work[k:] = E.reshape(rows, p).T
+    sol = fac.solve_in_place(work.T)
+    Kb, KE = sol[:, :k], sol[:, k:]
     Ef = E.reshape(-1, p)
-    Sc = D - Ef.T @ KE.reshape(-1, p)
+    # C-ordered copies of the parameters' columns: the products below are
+    # those of the C-ordered answer, to the last bit
+    KE = np.ascontiguousarray(KE)
+    Sc = D - Ef.T @ KE
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
-    dtheta = inverse @ (cc - Ef.T @ Kb.reshape(-1, k))
-    z = Kb - np.einsum("kbp,pj->kbj", KE, dtheta)
+    dtheta = inverse @ (cc - Ef.T @ np.ascontiguousarray(Kb))
+    # z = Kb - KE dtheta, the products summed over the parameters in order
+    # (what einsum did on the C-ordered answer, to the last bit)
+    KEd = KE[:, :1] * dtheta[0]
+    for j in range(1, p):
+        KEd += KE[:, j : j + 1] * dtheta[j]
+    z = np.subtract(Kb, KEd, order="C").reshape(bb.shape)
     if not multi:
         z, dtheta = z[:, :, 0], dtheta[:, 0]
     return ReducedSolution(z, dtheta, Sc, deficient)

@@ -370,6 +370,7 @@ class MMESmoother(GaussNewton):
         self._record_starts = np.concatenate([[0], self.starts]).astype(int)
         self._scale = None
         self._HRQ = None
+        self._solving = False
         self._kkt = BandedKKT(self.N, self.n, self.breaks)
 
     # ------------------------------------------------------------------ setup
@@ -672,11 +673,15 @@ class MMESmoother(GaussNewton):
         n, N, p = self.n, self.N, self.p
         H = lin.H
         if H.ndim == 2:
-            # linear measurement: H^T R^-1 and H^T R^-1 H never change
-            if self._HRQ is None:
+            # linear measurement: H^T R^-1 and H^T R^-1 H never change (kept
+            # for the iterations of a solve only, see solve)
+            HRQ = self._HRQ
+            if HRQ is None:
                 HR = np.einsum("ai,kab->kib", H, self.Rinv)
-                self._HRQ = (HR, HR @ H)
-            HR, Q = self._HRQ
+                HRQ = (HR, HR @ H)
+                if getattr(self, "_solving", False):
+                    self._HRQ = HRQ
+            HR, Q = HRQ
         else:
             HR = np.einsum("kai,kab->kib", H, self.Rinv)  # H^T Rinv
             Q = HR @ H
@@ -806,7 +811,17 @@ class MMESmoother(GaussNewton):
             theta = start.theta if start is not None and self.p else self.theta_init
             lin = self.linearize(x / s, d / se, self.project(theta))
         self._set_prior(W)
-        res = self._solve(W * np.outer(se, se), lin)
+        # H^T R^-1 and H^T R^-1 H are kept for the iterations of one solve
+        # only: a finished fit keeps its solver for later statistics and
+        # warm starts, and on a long record a study holds several of them
+        # (48 bytes per sample each for two states); recomputing them for a
+        # statistic is one einsum
+        self._solving = True
+        try:
+            res = self._solve(W * np.outer(se, se), lin)
+        finally:
+            self._solving = False
+            self._HRQ = None
         # Back to the user's units. J is unit-free; the multipliers (of J / 2
         # against defects in x) scale as 1 / s; the density of the N_obs
         # observations given the n free initial states as 1 / (the product

@@ -43,7 +43,7 @@ def test_live_factors_never_share_a_band_and_a_dead_ones_is_reused():
     buffer = first.lu
     del first
     gc.collect()
-    (idle,) = kkt._IDLE.values()
+    (idle,) = kkt._IDLE
     assert np.shares_memory(idle, buffer)
     del buffer, idle
     third = BandedKKT(N, n).factor(Q, A, None)
@@ -60,6 +60,30 @@ def test_a_singular_system_gives_its_buffer_back():
     with pytest.raises(np.linalg.LinAlgError):
         BandedKKT(N, n).factor(Q, A, None)
     assert len(kkt._IDLE) == 1
+
+
+def test_a_smaller_system_factorises_in_a_larger_idle_band():
+    # the held-out refits (a shorter record) reuse the whole record's band
+    # rather than allocating a second one beside it; same answer as fresh
+    N, n, M = 300, 2, 240
+    kkt._IDLE.clear()
+    Q, A = _blocks(M, n, 3)
+    rhs = np.random.default_rng(4).standard_normal((M, 2 * n))
+    alone = BandedKKT(M, n).factor(Q, A, None).solve(rhs)
+    kkt._IDLE.clear()
+    big = BandedKKT(N, n).factor(*_blocks(N, n, 5), None)
+    buffer = big.lu
+    del big
+    gc.collect()
+    small = BandedKKT(M, n).factor(Q, A, None)
+    assert np.shares_memory(small.lu, buffer)
+    assert not kkt._IDLE
+    np.testing.assert_array_equal(small.solve(rhs), alone)
+    del small
+    gc.collect()
+    # the whole buffer goes back, so the full-size system fits again
+    (idle,) = kkt._IDLE
+    assert idle.size == N * 2 * n * (6 * n - 2)
 
 
 @pytest.mark.parametrize("m", [1, 3])
