@@ -14,27 +14,10 @@ from __future__ import annotations
 
 import warnings
 
-import pysindy as ps
+from paper_case import paper_discover
 
-from pysindy_mme import StudyOptions, discover
 from pysindy_mme.discovery import confirm
 from pysindy_mme.systems import van_der_pol
-
-
-def _study(system, data):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return discover(
-            data.y,
-            data.t,
-            assumed_model=system.assumed_model,
-            n_states=2,
-            measured=[0],
-            noise_variance=0.01,
-            error_states=[1],
-            feature_library=ps.PolynomialLibrary(degree=3),
-            options=StudyOptions(feature_names=["x1", "x2"]),
-        )
 
 
 def test_a_pruned_group_is_not_fitted_again(monkeypatch):
@@ -57,7 +40,9 @@ def test_a_pruned_group_is_not_fitted_again(monkeypatch):
     monkeypatch.setattr(confirm._Search, "refit", watched_refit)
     system = van_der_pol()
     data = system.measure(0, t=system.time(100.0, 40.0))
-    res = _study(system, data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = paper_discover(data.y, data.t)  # default: PolynomialLibrary(3)
     log = "\n".join(res.confirmation.log)
     # the case this test is about: a joint start whose false terms are pruned
     assert "joint fit of 4 proposals" in log, log
