@@ -459,12 +459,9 @@ def _parameter_doubts(study, fit) -> tuple:
     return out, _parameter_advice(bounds, on_bound)
 
 
-def _bound_text(value) -> str:
-    return "None" if not np.isfinite(value) else sig(value)
-
-
-def _flag_bound(value) -> str:
-    return "" if not np.isfinite(value) else sig(value)
+def _bound_text(value, missing: str = "None") -> str:
+    """A bound as the advice writes it; ``missing`` where there is none."""
+    return missing if not np.isfinite(value) else sig(value)
 
 
 def _parameter_advice(bounds: dict, on_bound: list):
@@ -476,7 +473,7 @@ def _parameter_advice(bounds: dict, on_bound: list):
             for name, (g, lo, hi) in bounds.items()
         )
         flags = ",".join(
-            f"{name}={sig(g)}:{_flag_bound(lo)}:{_flag_bound(hi)}"
+            f"{name}={sig(g)}:{_bound_text(lo, '')}:{_bound_text(hi, '')}"
             for name, (g, lo, hi) in bounds.items()
         )
         parts.append(

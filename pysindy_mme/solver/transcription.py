@@ -679,7 +679,7 @@ class MMESmoother(GaussNewton):
             if HRQ is None:
                 HR = np.einsum("ai,kab->kib", H, self.Rinv)
                 HRQ = (HR, HR @ H)
-                if getattr(self, "_solving", False):
+                if self._solving:
                     self._HRQ = HRQ
             HR, Q = HRQ
         else:
