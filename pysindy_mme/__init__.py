@@ -23,6 +23,7 @@ from .exceptions import (
     NotSavedError,
     StepwiseCycleWarning,
     StudiesFailedError,
+    UnobservableError,
 )
 from .feature_library import PhysicsLibrary, PowerLibrary
 from .optimizers import FloatingFStepwise
@@ -50,4 +51,5 @@ __all__ = [
     "NotSavedError",
     "StepwiseCycleWarning",
     "StudiesFailedError",
+    "UnobservableError",
 ]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 __all__ = [
     "DivergenceError",
+    "UnobservableError",
     "DiscoveryWarning",
     "StepwiseCycleWarning",
     "ExcludedFeaturesWarning",
@@ -18,6 +19,21 @@ __all__ = [
 
 class DivergenceError(FloatingPointError):
     """A model or an iteration produced non-finite or exploding values."""
+
+
+class UnobservableError(ValueError):
+    """The measurements do not determine the states along the trajectory solved.
+
+    Raised by :class:`~pysindy_mme.MME` when its Gauss-Newton system is
+    singular. Either the measurement setup cannot see a state anywhere
+    (``measured``, ``measurement_matrix``, ``error_states``), or the model
+    is flat in that state along the current trajectory: a square-root
+    outflow ``sqrt(max(h, 0))`` at an empty tank, a dead zone, friction at
+    rest, where an unmeasured state started at zero leaves no trace in the
+    measured ones. For the second, start from a trajectory where it does
+    (``MME.fit(..., x_guess=...)``). A ``ValueError``, as before it had a
+    class of its own.
+    """
 
 
 class DiscoveryWarning(UserWarning):

@@ -25,7 +25,7 @@ from ..core.validation import (
     check_indices,
     check_time,
 )
-from ..exceptions import DivergenceError
+from ..exceptions import DivergenceError, UnobservableError
 from ..solver.transcription import MMESmoother
 from .error_models import ErrorModel, SolverInputs
 from .mme_checks import MMEChecks
@@ -245,7 +245,8 @@ class MME(MMEChecks, BaseDifferentiation):
     Errors: ``ValueError``/``TypeError`` naming the argument for bad input
     (checked before any long computation), including states that no
     measurement can see (found structurally up front, or numerically when
-    the estimation problem turns out singular, naming the unseen direction);
+    the estimation problem turns out singular, naming the unseen direction:
+    :class:`~pysindy_mme.UnobservableError`, a ``ValueError``);
     :class:`~pysindy_mme.smoother.DivergenceError` (a ``FloatingPointError``)
     if the assumed model blows up between samples or amplifies perturbations
     a million-fold within one sample interval along the estimate (unstable
@@ -311,7 +312,7 @@ class MME(MMEChecks, BaseDifferentiation):
         return extended_model_from_sindy(self, sindy_model, assumed_equations, check)
 
     # ----------------------------------------------------------------- fit
-    def fit(self, y, t=1.0, u=None, starts=None):
+    def fit(self, y, t=1.0, u=None, starts=None, x_guess=None):
         """Estimate the states and the model error from measurements.
 
         Parameters
@@ -327,12 +328,20 @@ class MME(MMEChecks, BaseDifferentiation):
             where a new record starts. Each record has its own initial state
             and no model error links it to the one before; ``t`` need only
             increase within each record.
+        x_guess : array-like (n_samples, n_states), optional
+            The trajectory Gauss-Newton starts from (default: the measured
+            states interpolated, the unmeasured ones at zero). Give one where
+            the model depends on every state when an unmeasured state at
+            zero sits where the model is flat in it (an empty tank under a
+            square-root outflow): there the problem is singular
+            (:class:`~pysindy_mme.UnobservableError`). Only the start: the
+            estimate is the solution the iterations reach from it.
 
         Returns
         -------
         self
         """
-        problem = self.check(y, t, u, starts)
+        problem = self.check(y, t, u, starts, x_guess)
         smoother = problem.smoother
 
         def solve(W, start):
@@ -344,7 +353,7 @@ class MME(MMEChecks, BaseDifferentiation):
         self._store(problem, search)
         return self
 
-    def check(self, y, t=1.0, u=None, starts=None) -> MMEProblem:
+    def check(self, y, t=1.0, u=None, starts=None, x_guess=None) -> MMEProblem:
         """Check the settings against the data and set up the solver.
 
         Everything :meth:`fit` checks, without solving (the cost is one
@@ -387,8 +396,14 @@ class MME(MMEChecks, BaseDifferentiation):
         )
         W_spec = self._W_spec(es.size)
         u = self._check_inputs(u, N, model)
+        guess = self._check_guess(x_guess, N, n)
 
         def make_smoother(model, error_states, measurement, measurement_jacobian):
+            x_init = None
+            if guess is not None:
+                # a coloured error model's own states (appended) start at zero
+                extra = np.zeros((N, model.n_states - n))
+                x_init = np.hstack([guess, extra]) if extra.size else guess
             return MMESmoother(
                 model,
                 y,
@@ -403,6 +418,7 @@ class MME(MMEChecks, BaseDifferentiation):
                 tol=float(self.tol),
                 input_hold=self.input_hold,
                 starts=starts,
+                x_init=x_init,
             )
 
         base = make_smoother(model, es, measurement, g_jac)
@@ -460,6 +476,21 @@ class MME(MMEChecks, BaseDifferentiation):
         longest = int(np.argmax(np.diff(bounds)))
         return R, parts[longest][1]
 
+    @staticmethod
+    def _check_guess(x_guess, N, n):
+        """``x_guess`` checked and copied (None stays None)."""
+        if x_guess is None:
+            return None
+        guess = np.array(x_guess, dtype=float)  # a copy: never the caller's
+        if guess.shape != (N, n):
+            raise ValueError(
+                f"x_guess must have shape (n_samples, n_states) = ({N}, {n}), got "
+                f"{guess.shape}"
+            )
+        if not np.all(np.isfinite(guess)):
+            raise ValueError("x_guess must be finite everywhere")
+        return guess
+
     # ------------------------------------------------------------- solving
     def _solve(self, smoother, W, start):
         try:
@@ -467,8 +498,12 @@ class MME(MMEChecks, BaseDifferentiation):
         except DivergenceError:
             raise
         except np.linalg.LinAlgError as exc:
-            raise ValueError(
-                f"{exc}. Check measured / measurement_matrix and error_states."
+            raise UnobservableError(
+                f"{exc}. Check measured / measurement_matrix and error_states; "
+                "if the states are observable elsewhere, the model may be flat in "
+                "an unmeasured state along this trajectory (a square-root outflow "
+                "at an empty tank, a dead zone): start from a trajectory where it "
+                "is not (MME.fit(..., x_guess=...))."
             ) from None
 
     # -------------------------------------------------------------- output

@@ -22,6 +22,7 @@ from ..core.validation import (
     check_indices,
     check_positive_number,
 )
+from ..exceptions import UnobservableError
 from ..solver.observability import unobservable_states
 from .error_models import resolve_error_model
 
@@ -187,11 +188,14 @@ class MMEChecks:
                 if bad_err
                 else f"states {hidden} cannot be seen in the measurements"
             )
-            raise ValueError(
+            raise UnobservableError(
                 f"{what}: no measured quantity depends on them, directly or "
                 f"through the assumed model, so their initial value and model "
                 f"error are undetermined (states {hidden} are unobservable). "
-                "Measure them (measured / measurement_matrix) or change the model."
+                "Measure them (measured / measurement_matrix) or change the model. "
+                "(Checked along the starting trajectory and perturbations of "
+                "it: if the model depends on them only elsewhere, past a kink or "
+                "a dead zone, start there: MME.fit(..., x_guess=...).)"
             )
 
     def _noise(self, y, t, m):

@@ -22,10 +22,11 @@ import numpy as np
 from scipy import stats
 from sklearn.base import clone
 
+from ..core.integrate import simulate_guided
 from ..core.jacobian import rowwise_jacobian
 from ..core.model import ParametricModel
 from ..core.tables import sig
-from ..exceptions import DivergenceError
+from ..exceptions import DivergenceError, UnobservableError
 from ..protocols import ValidationContext
 from ..protocols.runs import FreeRun, free_run, measurement_function, pooled_runs
 from ..solver.output_error import OutputErrorFit, OutputErrorModel
@@ -203,7 +204,11 @@ def fit_assumed_model(study) -> AssumedFit:
         # keeps it out of the basin of a stiff, degenerate model (a mass
         # that goes to zero with its damping) that the data cannot reject
         # before the trajectory joins.
-        for start in (_fit_from_mme_start, _fit_from_guessed_trajectory):
+        for start in (
+            _fit_from_mme_start,
+            _fit_from_guessed_trajectory,
+            _fit_from_free_run,
+        ):
             retry = start(study, engine, theta)
             if retry is not None and _rank(retry) > _rank(fit):
                 fit = retry
@@ -286,6 +291,37 @@ def _fit_from_guessed_trajectory(study, engine, theta):
     return engine.fit((), theta, held.x)
 
 
+def _fit_from_free_run(study, engine, theta):
+    """The assumed model's fit started from the guessed model's free run.
+
+    The last resort of step 1. The two starts before it begin at the
+    measured states with the unmeasured ones at zero, and Gauss-Newton
+    must make that trajectory follow the model; where the model is flat in
+    an unmeasured state at zero (a square-root outflow from an empty
+    tank), their linearisation sees nothing of it and the line search
+    stalls. A free run of the guessed model from the first sample follows
+    the model by construction (the tank fills from the pump), so the fit
+    starts where its trajectory already joins.
+    """
+    model = study.model_at(study.parameter_init)
+    runs = []
+    for rows in study.record_slices:
+        x0 = study.x_init[rows][0]
+        with np.errstate(all="ignore"):
+            sim = simulate_guided(
+                model,
+                x0,
+                study.t[rows],
+                study.inputs.subset(rows.start, rows.stop),
+                engine.n_substeps,
+                study.x_init[rows],
+            )
+        if not sim.ok[0]:
+            return None
+        runs.append(sim.x[0])
+    return engine.fit((), theta, np.vstack(runs))
+
+
 def _fit_from_mme_start(study, engine, theta):
     """The assumed model's fit started from MME's states at the guesses."""
     mme = _mme_at_guesses(study)
@@ -362,7 +398,20 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
     if study.offsets and assumed.fit.ok:
         y = study.y - assumed.fit.offsets
     try:
-        _fit_mme(mme, study, y)
+        try:
+            _fit_mme(mme, study, y)
+        except UnobservableError as exc:
+            if not assumed.fit.ok:
+                raise
+            # From the data's start (unmeasured states at zero) the model
+            # can be flat in a hidden state (a square-root outflow from an
+            # empty tank), and MME's problem singular there; step 1's
+            # trajectory follows the model where it sees every state.
+            _fit_mme(mme, study, y, x_guess=assumed.fit.x)
+            notes.append(
+                "MME was started from the assumed model's fitted trajectory: "
+                f"from the data's start its problem was singular ({exc})"
+            )
     except DivergenceError as exc:
         # Stiff near the fitted trajectory (a Torricelli outflow near an
         # empty tank) at MME's own steps, where step 1 already needed more:
@@ -422,11 +471,11 @@ def _mme_at_guesses(study):
     return mme
 
 
-def _fit_mme(mme, study, y):
+def _fit_mme(mme, study, y, x_guess=None):
     if study.n_records > 1:
-        mme.fit(y, study.t, study.inputs.u, starts=study.starts)
+        mme.fit(y, study.t, study.inputs.u, starts=study.starts, x_guess=x_guess)
     else:
-        mme.fit(y, study.t, study.inputs.u)
+        mme.fit(y, study.t, study.inputs.u, x_guess=x_guess)
 
 
 def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:

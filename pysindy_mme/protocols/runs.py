@@ -17,6 +17,7 @@ import numpy as np
 from sklearn.base import clone
 
 from ..core.integrate import InputSignal, simulate_guided
+from ..exceptions import DivergenceError, UnobservableError
 from ..solver.output_error import OutputErrorModel
 
 __all__ = [
@@ -180,7 +181,17 @@ def record_guess(study, record):
     with warnings.catch_warnings():
         # an internal start-up estimate: its notes are not about the user's study
         warnings.simplefilter("ignore")
-        estimate.fit(y_v, t_v)
+        try:
+            estimate.fit(y_v, t_v)
+        except (DivergenceError, UnobservableError):
+            # The guessed model can be stiff or flat near this record's
+            # estimate (a square-root outflow at an empty tank) where it was
+            # not on the fitting record. The guess only starts the window
+            # fits and Newton's free runs (their answers do not depend on
+            # it): the data's own start serves, measured states
+            # interpolated and the unmeasured ones at zero.
+            smoother = estimate.check(y_v, t_v).smoother
+            return np.asarray(smoother.initial_guess()[0][:, : study.n_states])
     return np.asarray(estimate.smoothed_x_)
 
 

@@ -292,6 +292,20 @@ BAD_INPUTS = [
         ValueError,
         r"u was given but assumed_model takes no input",
     ),
+    # ---- the starting trajectory
+    Bad(
+        "MME: x_guess of the wrong shape",
+        lambda tmp: _mme().fit(Y, T, x_guess=np.zeros((401, 1))),
+        ValueError,
+        r"x_guess must have shape \(n_samples, n_states\) = \(401, 2\), got "
+        r"\(401, 1\)",
+    ),
+    Bad(
+        "MME: x_guess not finite",
+        lambda tmp: _mme().fit(Y, T, x_guess=with_value(np.zeros((401, 2)), 7, np.nan)),
+        ValueError,
+        r"x_guess must be finite everywhere",
+    ),
     # ---- other options
     Bad(
         "MME: target unknown",
