@@ -133,6 +133,8 @@ class _Search:
         # group that was fitted as a whole and pruned is not refitted
         self.pruned = []
         self.steps_of = None  # fit -> RK4 steps its model needs, see accept
+        # term sets for which no fit that joins was found (_joined_without)
+        self.unjoined = set()
 
     # ------------------------------------------------------------ MME start
     def mme_fit(self) -> OutputErrorFit:
@@ -299,6 +301,14 @@ class _Search:
                     # that it does not matter (a true term whose removal made
                     # the fit diverge was dropped at 10^6 samples)
                     continue
+                if fit.joined and not without.joined:
+                    without = self._joined_without(smaller, without)
+                    if without is None:
+                        # Its cost is no model's cost (an overflow taken out of
+                        # one tank only, its coefficient walking to 1e12 with
+                        # the defects open, "fitted" below the cost of the
+                        # joined pair it came from): no evidence either
+                        continue
                 p, gain, needed = self.improves(without, fit)
                 if needed:
                     continue  # the refit says it matters: keep it
@@ -314,6 +324,24 @@ class _Search:
             if not dropped:
                 break
         return slots, fit, removed
+
+    def _joined_without(self, smaller, without):
+        """A fit of ``smaller`` whose trajectory joins, or None.
+
+        ``without`` (a trial that did not join) polished with the full
+        budget, then from MME's states; None if neither joins.
+        """
+        key = frozenset(smaller)
+        if key in self.unjoined:
+            return None  # tried before in this search: the same two fits
+        polished = self.refit(smaller, without.coefficients, without, True)
+        if polished.ok and polished.joined:
+            return polished
+        retry = self.mme_trial(smaller, None)
+        if retry is not None and retry.ok and retry.joined:
+            return retry
+        self.unjoined.add(key)
+        return None
 
     def accept(self, slots, fit, force=False) -> bool:
         """Make ``slots`` the current terms, their fit polished; False (and
@@ -635,9 +663,75 @@ def _group_step(search: _Search, proposals, values) -> bool:
         # group fit would be the same fit, pruned by the same step (on a long
         # record, a third of the confirmation's time)
         return False
+    current = list(search.fit.coefficients)
+    starts = [current + [0.0] * len(group), current + [value for _, value in group]]
+    return _try_together(
+        search,
+        slots,
+        starts,
+        lambda names, p: (
+            f"kept {names} together (they fail alone; p = {p:.2g} for the group)"
+        ),
+        "redundant once the group of proposals is in",
+    )
+
+
+def _flow_step(search: _Search, proposals, values) -> bool:
+    """Each function proposed in several equations, tried in all of them at once.
+
+    One function acting on two states is how a flow between them appears:
+    the outflow of a tank is the inflow of the next, the water over a weir
+    leaves one tank and fills another, heat leaves one body for another.
+    Each half alone can be the wrong model (an overflow taken out of the
+    upper tank only is best fitted as a hard wall with the water lost, a
+    coefficient walking off to 1e12), so that the other half is then not
+    significant on top of it, while the two together fit to the noise with
+    a moderate coefficient. So, for every column proposed in two or more
+    equations and not kept in all of them: the current terms without that
+    column, plus the column in every equation it was proposed for,
+    started at the regression's values and at 0; pruned backward; kept as
+    :func:`_group_step` keeps a group.
+    """
+    changed = False
+    columns = []
+    for _, c in proposals:
+        if c not in columns:
+            columns.append(c)
+    for c in columns:
+        ours = [(slot, v) for slot, v in zip(proposals, values) if slot[1] == c]
+        if len({slot[0] for slot, _ in ours}) < 2:
+            continue
+        if all(slot in search.slots for slot, _ in ours):
+            continue
+        keep = [k for k, slot in enumerate(search.slots) if slot[1] != c]
+        slots = [search.slots[k] for k in keep] + [slot for slot, _ in ours]
+        if (frozenset(slots), frozenset(search.slots)) in search.pruned:
+            continue
+        base = [float(search.fit.coefficients[k]) for k in keep]
+        starts = [base + [v for _, v in ours], base + [0.0] * len(ours)]
+        changed |= _try_together(
+            search,
+            slots,
+            starts,
+            lambda names, p: (
+                f"kept {names} together (one function in several "
+                f"equations: a flow between states; p = {p:.2g} for the terms added)"
+            ),
+            "replaced by the same function in all the equations it was proposed for",
+        )
+    return changed
+
+
+def _try_together(search: _Search, slots, starts, kept_note, dropped_why) -> bool:
+    """Fit ``slots`` from each coefficient vector in ``starts`` (from the
+    current fit's trajectory; from MME's states when that fails), prune
+    backward, and make the result current if the terms it adds improve the
+    fit significantly (F-test on their number) or, when it adds none, if it
+    lowers the BIC. ``kept_note(names, p) -> str`` for the log,
+    ``dropped_why`` the reason recorded for a current term it drops."""
     best = None
-    for start in ([0.0] * len(group), [value for _, value in group]):
-        trial = search.refit(slots, [*search.fit.coefficients, *start], search.fit)
+    for start in starts:
+        trial = search.refit(slots, start, search.fit)
         if trial.ok and (best is None or trial.cost < best.cost):
             best = trial
     best = search.mme_trial(slots, best)
@@ -659,11 +753,11 @@ def _group_step(search: _Search, proposals, values) -> bool:
         return False
     for slot in before:
         if slot not in kept:
-            search.reject(slot, "redundant once the group of proposals is in")
+            search.reject(slot, dropped_why)
     search.rejected = [(s, why) for s, why in search.rejected if s not in kept]
     names = ", ".join(search.describe(slot) for slot in added)
     search.note(
-        f"kept {names} together (they fail alone; p = {p:.2g} for the group)"
+        kept_note(names, p)
         if n_added > 0
         else f"kept {names} together in place of weaker terms (lower BIC)"
     )
@@ -743,6 +837,7 @@ def confirm_terms(
             break
     _prune(search, alpha_term, min_effect)  # a joint start may hold many
     _group_step(search, proposals, list(start_values))
+    _flow_step(search, proposals, list(start_values))
     search.tried = set(search.slots)
     swap_checked = set()
     for _ in range(MAX_ROUNDS):

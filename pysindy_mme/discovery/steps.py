@@ -472,10 +472,11 @@ def _mme_at_guesses(study):
 
 
 def _fit_mme(mme, study, y, x_guess=None):
+    # keywords only when used: an MME subclass may override fit(y, t, u)
+    extra = {} if x_guess is None else {"x_guess": x_guess}
     if study.n_records > 1:
-        mme.fit(y, study.t, study.inputs.u, starts=study.starts, x_guess=x_guess)
-    else:
-        mme.fit(y, study.t, study.inputs.u, x_guess=x_guess)
+        extra["starts"] = study.starts
+    mme.fit(y, study.t, study.inputs.u, **extra)
 
 
 def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:
@@ -593,6 +594,17 @@ def drop_smoothing_artefacts(engine, confirmation, library, describe) -> None:
         moved = (np.abs(after - before) > ARTEFACT_SHARE * np.abs(before)) & (
             np.abs(after - before) > 2.0 * np.where(np.isfinite(se), se, 0.0)
         )
+    walls = _walls(fit.slots, before, after, moved)
+    if walls:
+        moved[walls] = False
+        names = " and ".join(describe(fit.slots[j]) for j in walls)
+        factor = float(np.median(after[walls] / before[walls]))
+        confirmation.log.append(
+            f"kept {names}: one flow between states whose rate follows the "
+            f"kinks' smoothing (x{sig(factor, 3)} at half the width, the split "
+            "between the equations unchanged): the data say it is fast, a wall "
+            "such as an overflow, not how fast"
+        )
     if not np.any(moved):
         return
     keep = [j for j in range(k) if not moved[j]]
@@ -616,6 +628,40 @@ def drop_smoothing_artefacts(engine, confirmation, library, describe) -> None:
     refit = engine.fit(slots, theta, fit.x)
     if refit.ok:
         confirmation.slots, confirmation.fit = slots, refit
+
+
+# A flow's coefficients at half the width, as multiples of their values at
+# the full width, agree to within this ratio when only its rate changed.
+WALL_SPLIT = 1.1
+
+
+def _walls(slots, before, after, moved) -> list:
+    """Indices of moved terms that are one flow growing stiffer as a whole.
+
+    A weir or an overflow is a wall: the data say only that water above the
+    rim leaves at once, so the fitted rate of ``max(h1 - L, 0)`` is as
+    large as the kink's smoothing lets it be, and doubles when the width
+    halves. Where the same function is kept in several equations (out of one
+    state, into another) and all its coefficients grow by one factor, the
+    flow and its split are the data's; only its speed is the smoothing's.
+    A term in one equation that moves (a Stribeck bump imitating sticking)
+    is still an artefact.
+    """
+    out = []
+    columns = {c for _, c in slots}
+    for c in columns:
+        idx = [j for j, slot in enumerate(slots) if slot[1] == c]
+        if len(idx) < 2 or not all(moved[j] for j in idx):
+            continue
+        with np.errstate(all="ignore"):
+            factors = after[idx] / before[idx]
+        if (
+            np.all(np.isfinite(factors))
+            and np.all(factors > 1.0)
+            and factors.max() <= WALL_SPLIT * factors.min()
+        ):
+            out.extend(idx)
+    return sorted(out)
 
 
 def step_size_check(
