@@ -153,3 +153,20 @@ def test_tanks_overflow_pair_with_the_right_outflows():
     assert out < 0 < into and abs(out + into) < 0.05 * into  # conserved
     # the record is fitted to its noise
     assert res.gain.rmse_extended[0] < 1.1 * float(rec.noise_sd[0])
+
+
+def test_a_flow_that_stiffens_as_a_whole_is_a_wall_not_an_artefact():
+    """At half the smoothing width a wall's rate doubles, its split stays."""
+    from pysindy_mme.discovery.steps import _walls
+
+    slots = [(0, 1), (1, 1), (1, 3), (0, 5)]
+    before = np.array([-0.8045, 0.5646, -0.09, 0.02])
+    moved = np.array([True, True, False, True])
+    # the seed-1 tanks figures: x2.26 and x2.28; the lone term in x0' moved too
+    after = np.array([-1.82, 1.286, -0.09, 0.05])
+    assert _walls(slots, before, after, moved) == [0, 1]
+    # a split that changes is no single flow; a flow that softens is no wall
+    assert _walls(slots, before, np.array([-1.82, 0.9, -0.09, 0.05]), moved) == []
+    assert _walls(slots, before, np.array([-0.4, 0.28, -0.09, 0.05]), moved) == []
+    # one half not moved: the other half alone is judged as before
+    assert _walls(slots, before, after, np.array([True, False, False, True])) == []
