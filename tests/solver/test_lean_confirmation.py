@@ -231,3 +231,55 @@ def test_the_reduced_solve_frees_the_solved_columns_before_the_states(monkeypatc
     # the same answer, to the last bit
     np.testing.assert_array_equal(got.z, expected.z)
     np.testing.assert_array_equal(got.dtheta, expected.dtheta)
+
+
+class _CountedFeatures:
+    """``_features`` with its exact gradient, counting evaluations."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def __call__(self, z, cols):
+        self.calls += 1
+        return _features(z, cols)
+
+    def gradient(self, z, cols):
+        x1, x2 = z[:, 0], z[:, 1]
+        zero, one = np.zeros_like(x1), np.ones_like(x1)
+        grads = {
+            1: (one, zero),
+            2: (zero, one),
+            7: (2 * x1 * x2, x1**2),
+        }
+        return np.stack([np.column_stack(grads[c]) for c in cols], axis=1)
+
+
+def test_a_linearization_evaluates_the_library_once_per_stage(record, monkeypatch):
+    # the Jacobian of each RK4 stage is taken right after its value, at the
+    # same point, so the model's library columns there are reused (they were
+    # evaluated twice per stage); the same linearisation to the last bit
+    engine, data = record
+    features = _CountedFeatures()
+    counted = OutputErrorModel(
+        _ignorance, 2, features, data.y, data.t, None, engine.R, engine.measurement
+    )
+    slots, theta = [(1, 1), (1, 2), (1, 7)], np.array([-1.0, 1.0, -1.0])
+    solver = counted._solver(slots, theta, 1, 1e-9, data.x)
+    x, d = data.x / solver.unit, np.zeros((data.t.size - 1, 0))
+    features.calls = 0  # (the solver's units evaluated it once)
+    lin = solver.linearize(x, d, theta)
+    assert features.calls == 4 * solver.n_substeps  # one per RK4 stage
+
+    # the same numbers as a model that evaluates its library every time
+    from pysindy_mme.core.model import ParametricModel
+
+    monkeypatch.setattr(
+        ParametricModel,
+        "_phi",
+        lambda self, x, u: self.features(self._z(x, u), self.used),
+    )
+    features.calls = 0
+    again = solver.linearize(x, d, theta)
+    assert features.calls == 8 * solver.n_substeps
+    for name in ("A", "B", "defects", "r"):
+        np.testing.assert_array_equal(getattr(lin, name), getattr(again, name))
