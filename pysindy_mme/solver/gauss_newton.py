@@ -118,7 +118,12 @@ class GaussNewton:
                 break
             previous, lin = lin, self.linearize(x, d, theta)
             meas = self.measurement_cost(lin.r) + self.prior_cost(x)
-            if alpha == 1.0 and self._same_quadratic_model(previous, lin):
+            linear = alpha == 1.0 and self._same_quadratic_model(previous, lin)
+            # the old linearisation (its A, B, defects and residuals: 136
+            # bytes per sample of two states with five parameters) would
+            # otherwise live through the next KKT step, a study's peak
+            del previous
+            if linear:
                 # The problem is linear-quadratic (a linear model and
                 # measurement): the full step solved it exactly, and the next
                 # subproblem would be the same one with a zero step.

@@ -317,15 +317,19 @@ def solve_reduced(fac: KKTFactor, E, D, b, c) -> ReducedSolution:
     work[:k] = bb.reshape(rows, k).T
     work[k:] = E.reshape(rows, p).T
     sol = fac.solve_in_place(work.T)
-    Kb, KE = sol[:, :k], sol[:, k:]
     Ef = E.reshape(-1, p)
-    # C-ordered copies of the parameters' columns: the products below are
-    # those of the C-ordered answer, to the last bit
-    KE = np.ascontiguousarray(KE)
+    # C-ordered copies of the answer's columns: the products below are those
+    # of the C-ordered answer, to the last bit; then the Fortran-ordered
+    # answer goes (it is (k + p) columns of the record: at the peak of a
+    # study, 192 bytes per sample of two states, alive beside z otherwise)
+    # (copies: one column of it is C-contiguous already, and a view would
+    # keep the whole answer alive)
+    Kb, KE = np.array(sol[:, :k], order="C"), np.array(sol[:, k:], order="C")
+    del sol, work
     Sc = D - Ef.T @ KE
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
-    dtheta = inverse @ (cc - Ef.T @ np.ascontiguousarray(Kb))
+    dtheta = inverse @ (cc - Ef.T @ Kb)
     # z = Kb - KE dtheta, the products summed over the parameters in order
     # (what einsum did on the C-ordered answer, to the last bit)
     KEd = KE[:, :1] * dtheta[0]

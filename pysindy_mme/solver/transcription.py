@@ -804,12 +804,6 @@ class MMESmoother(GaussNewton):
         if not self.q:
             W = np.zeros((0, 0))
         s, sy, se = self.unit, self.channel_unit, self.unit[self.es]
-        if start is not None and start._lin is not None:
-            lin = start._lin
-        else:
-            x, d = (start.x, start.d) if start is not None else self.initial_guess()
-            theta = start.theta if start is not None and self.p else self.theta_init
-            lin = self.linearize(x / s, d / se, self.project(theta))
         self._set_prior(W)
         # H^T R^-1 and H^T R^-1 H are kept for the iterations of one solve
         # only: a finished fit keeps its solver for later statistics and
@@ -818,7 +812,10 @@ class MMESmoother(GaussNewton):
         # statistic is one einsum
         self._solving = True
         try:
-            res = self._solve(W * np.outer(se, se), lin)
+            # the starting linearisation is passed, not bound here: this
+            # frame would hold it through every iteration of the solve (a
+            # third linearisation alive at the peak of a study)
+            res = self._solve(W * np.outer(se, se), self._start_lin(start))
         finally:
             self._solving = False
             self._HRQ = None
@@ -849,6 +846,15 @@ class MMESmoother(GaussNewton):
             + 2.0 * (log_sy - records * log_det_s),
             max_defect=float(np.max(np.abs(defects * s), initial=0.0)),
         )
+
+    def _start_lin(self, start: SmootherResult | None):
+        """The linearisation a solve from ``start`` begins with (internal units)."""
+        if start is not None and start._lin is not None:
+            return start._lin
+        s, se = self.unit, self.unit[self.es]
+        x, d = (start.x, start.d) if start is not None else self.initial_guess()
+        theta = start.theta if start is not None and self.p else self.theta_init
+        return self.linearize(x / s, d / se, self.project(theta))
 
     def start_from(self, x, theta, d=None) -> SmootherResult:
         """A warm start at a given trajectory and parameters (user units)."""

@@ -163,3 +163,123 @@ def test_scores_from_one_pass_equal_a_pass_per_candidate(record, monkeypatch):
     np.testing.assert_allclose(together[0], one_by_one[0], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(together[1], one_by_one[1], rtol=1e-9, atol=1e-12)
     assert np.argmax(together[0]) == np.argmax(one_by_one[0])
+
+
+def _live_linearizations():
+    from pysindy_mme.solver.records import Linearization
+
+    return sum(isinstance(o, Linearization) for o in gc.get_objects())
+
+
+def test_a_kkt_step_holds_only_the_current_linearization(record, monkeypatch):
+    # the previous iteration's linearisation and the one the solve started
+    # from used to stay alive through every later KKT step (at a study's
+    # peak, two linearisations of the whole record beside the one in use)
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    # linearisations held elsewhere (fits of other tests) are not counted
+    gc.collect()
+    before = _live_linearizations()
+    alive = []
+    smoother = type(engine._solver(slots, np.zeros(3), 1, 1e-9))
+    step = smoother._kkt_step
+
+    def counting(self, lin, W, Winv):
+        alive.append(_live_linearizations() - before)
+        return step(self, lin, W, Winv)
+
+    monkeypatch.setattr(smoother, "_kkt_step", counting)
+    fit = engine.fit(slots, np.array([-0.5, 0.5, -0.5]), data.x, max_iter=6)
+    assert fit.n_iter >= 3 and len(alive) == fit.n_iter
+    assert max(alive) == 1
+
+
+def test_the_reduced_solve_frees_the_solved_columns_before_the_states(monkeypatch):
+    # solve_reduced solves [b, E] in one Fortran-ordered array of (k + p)
+    # columns of the record; only C-ordered copies of its columns are kept
+    # afterwards (one column of it is C-contiguous: a "copy" by
+    # np.ascontiguousarray would be a view that keeps the whole array alive)
+    import weakref
+
+    N, n, p = 200, 2, 3
+    Q, A = _blocks(N, n, 6)
+    rng = np.random.default_rng(7)
+    E = rng.standard_normal((N, 2 * n, p))
+    D = np.eye(p) * 1e3 + E.reshape(-1, p).T @ E.reshape(-1, p)
+    b, c = rng.standard_normal((N, 2 * n)), rng.standard_normal(p)
+    fac = BandedKKT(N, n).factor(Q, A, None)
+    expected = kkt.solve_reduced(fac, E, D, b, c)
+    solved = []
+    solve_in_place = kkt.KKTFactor.solve_in_place
+    inverse = kkt.equilibrated_inverse
+
+    def keep_ref(self, cols):
+        out = solve_in_place(self, cols)
+        solved.append(weakref.ref(out))
+        return out
+
+    freed = []
+
+    def check(Sc):
+        freed.append(solved[-1]() is None)
+        return inverse(Sc)
+
+    monkeypatch.setattr(kkt.KKTFactor, "solve_in_place", keep_ref)
+    monkeypatch.setattr(kkt, "equilibrated_inverse", check)
+    got = kkt.solve_reduced(fac, E, D, b, c)
+    assert freed == [True]
+    # the same answer, to the last bit
+    np.testing.assert_array_equal(got.z, expected.z)
+    np.testing.assert_array_equal(got.dtheta, expected.dtheta)
+
+
+class _CountedFeatures:
+    """``_features`` with its exact gradient, counting evaluations."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def __call__(self, z, cols):
+        self.calls += 1
+        return _features(z, cols)
+
+    def gradient(self, z, cols):
+        x1, x2 = z[:, 0], z[:, 1]
+        zero, one = np.zeros_like(x1), np.ones_like(x1)
+        grads = {
+            1: (one, zero),
+            2: (zero, one),
+            7: (2 * x1 * x2, x1**2),
+        }
+        return np.stack([np.column_stack(grads[c]) for c in cols], axis=1)
+
+
+def test_a_linearization_evaluates_the_library_once_per_stage(record, monkeypatch):
+    # the Jacobian of each RK4 stage is taken right after its value, at the
+    # same point, so the model's library columns there are reused (they were
+    # evaluated twice per stage); the same linearisation to the last bit
+    engine, data = record
+    features = _CountedFeatures()
+    counted = OutputErrorModel(
+        _ignorance, 2, features, data.y, data.t, None, engine.R, engine.measurement
+    )
+    slots, theta = [(1, 1), (1, 2), (1, 7)], np.array([-1.0, 1.0, -1.0])
+    solver = counted._solver(slots, theta, 1, 1e-9, data.x)
+    x, d = data.x / solver.unit, np.zeros((data.t.size - 1, 0))
+    features.calls = 0  # (the solver's units evaluated it once)
+    lin = solver.linearize(x, d, theta)
+    assert features.calls == 4 * solver.n_substeps  # one per RK4 stage
+
+    # the same numbers as a model that evaluates its library every time
+    from pysindy_mme.core.model import ParametricModel
+
+    monkeypatch.setattr(
+        ParametricModel,
+        "_phi",
+        lambda self, x, u: self.features(self._z(x, u), self.used),
+    )
+    features.calls = 0
+    again = solver.linearize(x, d, theta)
+    assert features.calls == 8 * solver.n_substeps
+    for name in ("A", "B", "defects", "r"):
+        np.testing.assert_array_equal(getattr(lin, name), getattr(again, name))
