@@ -99,6 +99,9 @@ class Confirmation:
         F-test of the extended against the assumed model (NaN if no term).
     log : list of str
         One line per decision.
+    notes : list of str
+        What the report must say about the kept terms (a flow kept as a
+        wall whose rate the data do not fix).
     """
 
     slots: list
@@ -106,6 +109,7 @@ class Confirmation:
     rejected: list = field(default_factory=list)
     correction_p_value: float = float("nan")
     log: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
 
 class _Search:

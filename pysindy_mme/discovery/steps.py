@@ -599,12 +599,15 @@ def drop_smoothing_artefacts(engine, confirmation, library, describe) -> None:
         moved[walls] = False
         names = " and ".join(describe(fit.slots[j]) for j in walls)
         factor = float(np.median(after[walls] / before[walls]))
-        confirmation.log.append(
-            f"kept {names}: one flow between states whose rate follows the "
+        text = (
+            f"{names} kept as one flow between states whose rate follows the "
             f"kinks' smoothing (x{sig(factor, 3)} at half the width, the split "
             "between the equations unchanged): the data say it is fast, a wall "
-            "such as an overflow, not how fast"
+            "such as an overflow, not how fast; the sizes of its coefficients are "
+            "lower bounds, not estimates"
         )
+        confirmation.log.append(text)
+        confirmation.notes.append(text)
     if not np.any(moved):
         return
     keep = [j for j in range(k) if not moved[j]]

@@ -628,6 +628,7 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine):
     ``(notes, smoothing)``, the second the smoothing check's finding when
     it found the width harmless (shown with the extended model)."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
+    notes += list(confirmation.notes)
     shown = ""
     fit = confirmation.fit
     if fit is not None:

@@ -118,13 +118,14 @@ def test_a_function_proposed_in_two_equations_is_tried_as_a_flow():
 
 @pytest.mark.slow  # one study of about two minutes
 def test_tanks_overflow_pair_with_the_right_outflows():
-    from pysindy_mme import MME, PhysicsLibrary, StudyOptions, discover
+    from tanks_case import tanks_arguments
+
+    from pysindy_mme import PhysicsLibrary, discover
     from pysindy_mme.feature_library import Overflow
     from pysindy_mme.machines import cascaded_tanks
 
     machine = cascaded_tanks(assumed="sqrt")
     rec = machine.record(1)
-    step = rec.quantisation_step
     lib = PhysicsLibrary(
         [Overflow("h1", [6, 8, 10, 12, 14])],
         include_bias=False,
@@ -132,21 +133,7 @@ def test_tanks_overflow_pair_with_the_right_outflows():
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(
-            rec.y,
-            rec.t,
-            u=rec.u,
-            assumed_model=machine.assumed_model,
-            n_states=2,
-            measured=[1],
-            noise_variance=float(rec.noise_sd[0]) ** 2 + step**2 / 12.0,
-            error_states=[0, 1],
-            feature_library=lib,
-            options=StudyOptions(
-                parameters=machine.parameters, feature_names=["h1", "h2", "u"]
-            ),
-            mme=MME(input_hold="zoh"),
-        )
+        res = discover(**tanks_arguments(machine, rec, lib))
     assert set(res.terms["h1"]) == {"over(h1, 10)"}, res.terms
     assert set(res.terms["h2"]) == {"over(h1, 10)"}, res.terms
     out, into = res.terms["h1"]["over(h1, 10)"], res.terms["h2"]["over(h1, 10)"]

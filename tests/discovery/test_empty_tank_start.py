@@ -15,8 +15,8 @@ import warnings
 
 import numpy as np
 import pytest
+from tanks_case import tanks_arguments
 
-from pysindy_mme import MME
 from pysindy_mme.discovery.steps import fit_assumed_model
 from pysindy_mme.discovery.study import prepare_study
 from pysindy_mme.machines import cascaded_tanks
@@ -26,20 +26,9 @@ MACHINE = cascaded_tanks(assumed="sqrt")
 
 @pytest.mark.slow  # about 20 s of fits: four starts on 1024 samples
 def test_assumed_fit_starts_where_the_hidden_tank_is_seen():
-    rec = MACHINE.record(1)
-    step = rec.quantisation_step
-    study, _ = prepare_study(
-        rec.y,
-        rec.t,
-        u=rec.u,
-        assumed_model=MACHINE.assumed_model,
-        n_states=2,
-        measured=[1],
-        noise_variance=float(rec.noise_sd[0]) ** 2 + step**2 / 12.0,
-        error_states=[0, 1],
-        options={"parameters": MACHINE.parameters},
-        mme=MME(input_hold="zoh"),
-    )
+    args = tanks_arguments(MACHINE, MACHINE.record(1))
+    y, t = args.pop("y"), args.pop("t")
+    study, _ = prepare_study(y, t, **args)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assumed = fit_assumed_model(study)

@@ -58,8 +58,9 @@ import warnings
 
 import numpy as np
 import pytest
+from tanks_case import tanks_arguments
 
-from pysindy_mme import MME, PhysicsLibrary, StudyOptions, discover
+from pysindy_mme import PhysicsLibrary, discover
 from pysindy_mme.feature_library import Overflow, Torricelli
 from pysindy_mme.machines import cascaded_tanks
 
@@ -69,12 +70,6 @@ VALIDATION_SEED = 1000  # the test record of seed s is MACHINE.record(1000 + s)
 RMSE_FACTOR = 1.5
 SEEDS = range(10)
 NEEDED = 9
-
-
-def sensor_variance(rec) -> float:
-    """Noise variance of the level sensor: white noise plus 12-bit steps."""
-    step = rec.quantisation_step or 0.0
-    return float(rec.noise_sd[0]) ** 2 + step**2 / 12.0
 
 
 def tanks_study(seed):
@@ -89,22 +84,7 @@ def tanks_study(seed):
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = discover(
-            rec.y,
-            rec.t,
-            u=rec.u,
-            assumed_model=MACHINE.assumed_model,
-            n_states=2,
-            measured=[1],
-            noise_variance=sensor_variance(rec),
-            error_states=[0, 1],
-            feature_library=lib,
-            validation=(test.y, test.t, test.u),
-            options=StudyOptions(
-                parameters=MACHINE.parameters, feature_names=["h1", "h2", "u"]
-            ),
-            mme=MME(input_hold="zoh"),
-        )
+        res = discover(**tanks_arguments(MACHINE, rec, lib, validation=test))
     return res, test, time.perf_counter() - start
 
 
@@ -232,3 +212,22 @@ def test_tanks_over_ten_seeds():
         f"{len(SEEDS)}; {details}"
     )
     assert all(n >= NEEDED for n in counts.values()), details
+
+
+@pytest.mark.slow  # one study, 20-70 s
+def test_overflow_kept_as_a_wall_seed3():
+    """Seed 3 meets all three requirements since the flow rules: the law, and
+    the overflow out of h1' and into h2' as one flow (a wall, whose rate the
+    smoothing sets and the report says so), predicting the test record as
+    well as the true model does."""
+    res, test, _ = tanks_study(3)
+    assert tanks_failures(res, test) == {}, _describe(res)
+    out = res.terms["h1"]["over(h1, 14)"]
+    into = res.terms["h2"]["over(h1, 14)"]
+    # the split is the hidden level's scale: b is held at its guess 0.05, the
+    # truth is kp = 0.036, so h1 is in units 0.05 / 0.036 = 1.39 times the
+    # lower tank's, and the water h1 loses arrives in h2 divided by that
+    assert out < 0 < into
+    assert abs(-out / into - 0.05 / 0.036) < 0.05 * 0.05 / 0.036
+    assert any("kept as one flow between states" in n for n in res.warnings)
+    assert "lower bounds, not estimates" in str(res)
