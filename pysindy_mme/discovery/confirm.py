@@ -599,6 +599,13 @@ def _merge_round(search: _Search, z) -> bool:
                             f"{pair} together replaced by "
                             f"{search.describe(cand)}, fewer terms, as good a fit",
                         )
+                    # the merged fit's backward step may drop other terms too
+                    # (half of a flow whose other half was merged away): said
+                    for gone in slots:
+                        if gone not in trial_slots and gone not in (slots[i], slots[j]):
+                            why = f"redundant once {pair} were merged"
+                            search.reject(gone, why)
+                            search.note(f"removed {search.describe(gone)}: {why}")
                     return True
     return False
 

@@ -157,3 +157,36 @@ def test_a_flow_that_stiffens_as_a_whole_is_a_wall_not_an_artefact():
     assert _walls(slots, before, np.array([-0.4, 0.28, -0.09, 0.05]), moved) == []
     # one half not moved: the other half alone is judged as before
     assert _walls(slots, before, after, np.array([True, False, False, True])) == []
+
+
+def test_a_term_the_merge_drops_is_said():
+    """Seed 2 of the tanks: merging two terms of h1' into one let the merged
+    fit's backward step drop the other half of a flow, with no word in the
+    log or the report. Now it is recorded with its reason."""
+    from pysindy_mme.discovery.confirm import _merge_round
+
+    z = np.linspace(0.0, 14.0, 200)[:, None]
+
+    def features(z, cols):
+        h = z[:, 0]
+        table = {
+            1: np.maximum(h - 6.0, 0.0),
+            2: np.maximum(h - 14.0, 0.0) + 0.01 * h,
+            3: np.maximum(h - 8.0, 0.0),
+        }
+        return np.column_stack([table[c] for c in cols])
+
+    a, b, half, cand = (0, 1), (0, 2), (1, 2), (0, 3)
+    current = _fit([a, b, half], 950.0)
+    merged = _fit([half, cand], 930.0, p=[0.5, 1e-12])
+    alone = _fit([cand], 931.0)
+    search = _search({frozenset([half, cand]): merged, frozenset([cand]): alone})
+    search.engine = SimpleNamespace(features=features)
+    search.pool = [a, b, half, cand, (1, 1), (1, 3)]
+    search.slots, search.fit = [a, b, half], current
+    current.coefficients = np.array([0.02, 0.01, 0.01])
+    assert _merge_round(search, z)
+    assert search.slots == [cand]
+    reasons = dict(search.rejected)
+    assert "merged" in reasons[half]
+    assert any(line.startswith("removed c2 in x1'") for line in search.log)
