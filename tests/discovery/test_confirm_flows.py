@@ -15,17 +15,16 @@ tried from MME's states; kept if neither joins), and a function proposed
 in several equations is also tried in all of them at once (a flow).
 
 The search is driven here by stand-in fits with the costs of that study, so
-that each rule is tested alone; the whole study is in
-``benchmarks/bench_physics.py`` and the slow test below.
+that each rule is tested alone; whole studies are in
+``benchmarks/bench_physics.py --only tanks`` and, for the linear model's seed
+3, ``test_physics_tanks.py::test_overflow_kept_as_a_wall_seed3``.
 """
 
 from __future__ import annotations
 
-import warnings
 from types import SimpleNamespace
 
 import numpy as np
-import pytest
 
 from pysindy_mme.discovery.confirm import _flow_step, _Search
 
@@ -114,32 +113,6 @@ def test_a_function_proposed_in_two_equations_is_tried_as_a_flow():
     search = _search({})
     assert not _flow_step(search, [WEIR_H1, OTHER], [-0.004, 0.002])
     assert search.calls == []
-
-
-@pytest.mark.slow  # one study of about two minutes
-def test_tanks_overflow_pair_with_the_right_outflows():
-    from tanks_case import tanks_arguments
-
-    from pysindy_mme import PhysicsLibrary, discover
-    from pysindy_mme.feature_library import Overflow
-    from pysindy_mme.machines import cascaded_tanks
-
-    machine = cascaded_tanks(assumed="sqrt")
-    rec = machine.record(1)
-    lib = PhysicsLibrary(
-        [Overflow("h1", [6, 8, 10, 12, 14])],
-        include_bias=False,
-        names=["h1", "h2", "u"],
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = discover(**tanks_arguments(machine, rec, lib))
-    assert set(res.terms["h1"]) == {"over(h1, 10)"}, res.terms
-    assert set(res.terms["h2"]) == {"over(h1, 10)"}, res.terms
-    out, into = res.terms["h1"]["over(h1, 10)"], res.terms["h2"]["over(h1, 10)"]
-    assert out < 0 < into and abs(out + into) < 0.05 * into  # conserved
-    # the record is fitted to its noise
-    assert res.gain.rmse_extended[0] < 1.1 * float(rec.noise_sd[0])
 
 
 def test_a_flow_that_stiffens_as_a_whole_is_a_wall_not_an_artefact():
