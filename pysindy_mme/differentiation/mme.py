@@ -22,6 +22,7 @@ from sklearn.exceptions import ConvergenceWarning
 from ..core.model import as_model_function
 from ..core.noise import difference_noise_variance, noise_covariance
 from ..core.validation import (
+    as_float_array,
     check_indices,
     check_time,
 )
@@ -481,14 +482,12 @@ class MME(MMEChecks, BaseDifferentiation):
         """``x_guess`` checked and copied (None stays None)."""
         if x_guess is None:
             return None
-        guess = np.array(x_guess, dtype=float)  # a copy: never the caller's
+        guess = as_float_array(x_guess, "x_guess", ndim=2)  # a copy, finite
         if guess.shape != (N, n):
             raise ValueError(
                 f"x_guess must have shape (n_samples, n_states) = ({N}, {n}), got "
                 f"{guess.shape}"
             )
-        if not np.all(np.isfinite(guess)):
-            raise ValueError("x_guess must be finite everywhere")
         return guess
 
     # ------------------------------------------------------------- solving

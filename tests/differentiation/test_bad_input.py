@@ -304,7 +304,7 @@ BAD_INPUTS = [
         "MME: x_guess not finite",
         lambda tmp: _mme().fit(Y, T, x_guess=with_value(np.zeros((401, 2)), 7, np.nan)),
         ValueError,
-        r"x_guess must be finite everywhere",
+        r"x_guess contains NaN \(first at index \[7, 0\]\)",
     ),
     # ---- other options
     Bad(
