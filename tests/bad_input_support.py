@@ -62,11 +62,11 @@ def install_tripwires(monkeypatch) -> None:
     """Replace the entry points' long computations by a tripwire.
 
     MME's solver (``MMESmoother.solve``), the stepwise regression's first
-    step over the library (``optimizers.stepwise.screen_columns``, looked up
+    step over the library (``optimizers.preparation.screen_columns``, looked up
     there at call time) and the output-error fit of the study
     (``OutputErrorModel.fit``).
     """
-    import pysindy_mme.optimizers.stepwise as stepwise_module
+    import pysindy_mme.optimizers.preparation as preparation_module
     from pysindy_mme.solver import MMESmoother
     from pysindy_mme.solver.output_error import OutputErrorModel
 
@@ -74,7 +74,7 @@ def install_tripwires(monkeypatch) -> None:
         raise LongComputationStarted
 
     monkeypatch.setattr(MMESmoother, "solve", tripwire)
-    monkeypatch.setattr(stepwise_module, "screen_columns", tripwire)
+    monkeypatch.setattr(preparation_module, "screen_columns", tripwire)
     monkeypatch.setattr(OutputErrorModel, "fit", tripwire)
 
 

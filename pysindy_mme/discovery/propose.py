@@ -8,6 +8,7 @@ output-error confirmation (step 4) settles them on the measurements.
 
 from __future__ import annotations
 
+import copy
 import inspect
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ from sklearn.base import clone
 from ..core.features import SelectedFeatures
 from ..core.libraries import fresh_library
 from ..optimizers import FloatingFStepwise
+from ..optimizers.partial import project_out
 
 __all__ = ["Proposals", "propose_terms"]
 
@@ -208,8 +210,52 @@ def flag_library_columns(theta, z=None, columns=None):
     return flags, nonsmooth
 
 
-def propose_terms(study, x_hat, d_hat) -> Proposals:
-    """Regress ``d_hat`` of the error states on the library at ``x_hat``."""
+def _given_columns(study, sensitivities):
+    """Per error state, the sensitivities of the parameters the study re-fits
+    (gauges are held) that move that equation; None when there are none."""
+    if sensitivities is None:
+        return None
+    free = ~np.asarray(study.parameter_gauge, dtype=bool)
+    given = []
+    for i in study.error_states:
+        cols = sensitivities[:, i, free]
+        cols = cols[:, np.any(cols != 0, axis=0)]
+        given.append(cols if cols.shape[1] else None)
+    return given if any(g is not None for g in given) else None
+
+
+def _fit_each(opt, theta, d, given):
+    """Any pysindy optimizer, given the columns: fitted once per error state on
+    the projected library and target; one copy holds the stacked ``coef_``."""
+    fitted = []
+    for k in range(d.shape[1]):
+        one = clone(opt)
+        cols = given[k] if given[k] is not None else np.zeros((len(d), 0))
+        x_p, y_p, _ = project_out(theta, d[:, [k]], cols, np.ones(len(d)))
+        fitted.append(one.fit(x_p, y_p))
+    stacked = copy.deepcopy(fitted[0])
+    stacked.coef_ = np.vstack([np.asarray(f.coef_).reshape(1, -1) for f in fitted])
+    if hasattr(stacked, "intercept_"):
+        stacked.intercept_ = np.concatenate(
+            [np.ravel(getattr(f, "intercept_", 0.0))[:1] for f in fitted]
+        )
+    return stacked
+
+
+def propose_terms(study, x_hat, d_hat, sensitivities=None) -> Proposals:
+    """Regress ``d_hat`` of the error states on the library at ``x_hat``.
+
+    With grey-box parameters, ``sensitivities`` (``df/dp`` along ``x_hat``,
+    :func:`~.steps.parameter_sensitivities`) are regressors every model of
+    an equation holds: the confirmation re-fits the parameters with the new
+    terms, so a term is proposed for what the parameters cannot explain.
+    ``d_hat`` was estimated at the current parameters; without this, a
+    missing ``-sqrt(h)`` beside the model's ``-a h`` (whose ``a`` then
+    absorbs part of it) is explained by look-alikes that bend the other way.
+    ``FloatingFStepwise`` takes them as ``partial_out``; another optimizer is
+    fitted once per equation on the library and ``d`` with them projected
+    out (Frisch-Waugh-Lovell).
+    """
     z_hat = x_hat if study.u is None else np.hstack([x_hat, study.u])
     library = fresh_library(study.library).fit(z_hat)
     with np.errstate(all="ignore"):
@@ -222,8 +268,12 @@ def propose_terms(study, x_hat, d_hat) -> Proposals:
         opt.set_params(fit_intercept=True)
     es = study.error_states
     targets = [study.state_names[i] for i in es]
-    if _accepts_names(opt):
-        opt.fit(theta, d_hat[:, es], feature_names=names, target_names=targets)
+    given = _given_columns(study, sensitivities)
+    if given is not None and not isinstance(opt, FloatingFStepwise):
+        opt = _fit_each(opt, theta, d_hat[:, es], given)
+    elif _accepts_names(opt):
+        extra = {} if given is None else {"partial_out": given}
+        opt.fit(theta, d_hat[:, es], feature_names=names, target_names=targets, **extra)
     else:
         opt.fit(theta, d_hat[:, es])
     n = study.n_states

@@ -42,6 +42,7 @@ __all__ = [
     "fit_assumed_model",
     "fix_gauges",
     "baseline",
+    "parameter_sensitivities",
     "set_aside_parameter_duplicates",
     "estimate_model_error",
     "confirm_on_measurements",
@@ -479,22 +480,29 @@ def _fit_mme(mme, study, y, x_guess=None):
     mme.fit(y, study.t, study.inputs.u, **extra)
 
 
-def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:
+def parameter_sensitivities(study, x_hat, p_hat):
+    """``df/dp`` of the assumed model along ``x_hat``: ``(N, n, n_parameters)``
+    (None without grey-box parameters)."""
+    if not study.n_parameters:
+        return None
+    return ParametricModel(
+        _base(study), study.n_states, study.n_parameters
+    ).param_jacobian(x_hat, study.t, study.u, np.asarray(p_hat, dtype=float))
+
+
+def set_aside_parameter_duplicates(study, proposals, x_hat, sens) -> None:
     """Library terms that only re-do a parameter of the assumed model.
 
     With grey-box parameters, a library function whose effect on an
     equation is the same as a parameter's (``x1`` in ``x2'`` when the model
     has ``-k x1``: correlation above 0.9999 along the estimated trajectory)
     would only re-estimate that parameter: it is neither proposed nor
-    offered, and the report says why (``proposals.rejected``).
+    offered, and the report says why (``proposals.rejected``). ``sens``:
+    :func:`parameter_sensitivities` at ``x_hat``.
     """
-    if not study.n_parameters:
+    if sens is None:
         return
-    base = _base(study)
     u = study.u
-    sens = ParametricModel(base, study.n_states, study.n_parameters).param_jacobian(
-        x_hat, study.t, u, np.asarray(p_hat, dtype=float)
-    )
     z = x_hat if u is None else np.hstack([x_hat, u])
     duplicates = {}
     for state, col in {*proposals.slots, *proposals.candidates}:
@@ -514,9 +522,9 @@ def set_aside_parameter_duplicates(study, proposals, x_hat, p_hat) -> None:
         for s, v in zip(proposals.slots, proposals.start_values)
         if s not in duplicates
     ]
-    proposals.rejected.extend(
-        (s, duplicates[s]) for s in proposals.slots if s in duplicates
-    )
+    # every duplicate is said, proposed or not (with partialled regressions
+    # a parameter's own shape is never proposed, only offered)
+    proposals.rejected.extend((s, duplicates[s]) for s in sorted(duplicates))
     proposals.slots = [s for s, _ in keep]
     proposals.start_values = [v for _, v in keep]
     proposals.candidates = [c for c in proposals.candidates if c not in duplicates]

@@ -40,6 +40,7 @@ from .steps import (
     measure_gain,
     output_error_engine,
     overshoots,
+    parameter_sensitivities,
     rk4_steps_of,
     set_aside_parameter_duplicates,
     smoothing_check,
@@ -225,8 +226,9 @@ def run_study(study, progress: Progress) -> Discovery:
     progress.stage(f"1. assumed model: chi2 = {assumed.chi2:.6g} on {assumed.dof} dof")
     estimate = estimate_model_error(study, assumed)  # 2
     progress.stage(f"2. MME: W = {np.asarray(estimate.mme.W_)}")
-    proposals = propose_terms(study, estimate.x, estimate.d)  # 3
-    set_aside_parameter_duplicates(study, proposals, estimate.x, assumed.fit.physical)
+    sens = parameter_sensitivities(study, estimate.x, assumed.fit.physical)
+    proposals = propose_terms(study, estimate.x, estimate.d, sens)  # 3
+    set_aside_parameter_duplicates(study, proposals, estimate.x, sens)
     progress.stage(f"3. regression of d(t) proposes {len(proposals.slots)} term(s)")
     substeps = max(assumed.substeps, _substeps(study, assumed, proposals, estimate.x))
     engine = output_error_engine(study, proposals.evaluate, substeps)

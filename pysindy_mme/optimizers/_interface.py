@@ -10,8 +10,10 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
+from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 from ._checks import InvalidParameterError, _dense_real
 
 __all__ = [
@@ -19,6 +21,9 @@ __all__ = [
     "EstimatorInterface",
     "array_ndim",
     "warn_constant_lost",
+    "warn_cycle",
+    "warn_excluded",
+    "warn_not_settled",
 ]
 
 
@@ -36,6 +41,38 @@ def array_ndim(y) -> int:
         return np.asarray(y).ndim
     except (TypeError, ValueError):
         return 2
+
+
+def warn_excluded(excluded: dict, name) -> None:
+    """One warning listing the library columns that can never be selected."""
+    listed = "; ".join(f"{name(j)}: {why}" for j, why in excluded.items())
+    warnings.warn(
+        f"{len(excluded)} library column(s) can never be selected ({listed})",
+        ExcludedFeaturesWarning,
+        stacklevel=3,
+    )
+
+
+def warn_cycle(target: int, cycle: dict) -> None:
+    """The warning of a selection that returned to a model it had visited."""
+    warnings.warn(
+        f"FloatingFStepwise returned to a model it had already visited "
+        f"(target {target}, phase {cycle['phase']}, iteration "
+        f"{cycle['iteration']}): a cycle of {cycle['length']} models; stopping "
+        "at the one with the largest overall F-ratio",
+        StepwiseCycleWarning,
+        stacklevel=4,
+    )
+
+
+def warn_not_settled(target: int, max_iter: int) -> None:
+    """The warning of a selection stopped by ``max_iter``."""
+    warnings.warn(
+        f"FloatingFStepwise reached max_iter={max_iter} on target {target} "
+        "before the selection settled; the last model is kept",
+        ConvergenceWarning,
+        stacklevel=4,
+    )
 
 
 def warn_constant_lost(targets) -> None:

@@ -27,8 +27,9 @@ import numbers
 
 import numpy as np
 
-from ._checks import check_data
+from ._checks import InvalidParameterError, check_data
 from ._numeric import BLOCK_ELEMENTS, one_blas_thread
+from .partial import check_partial_out
 
 __all__ = ["StreamedDesign", "as_streamed", "check_library", "is_streamed"]
 
@@ -74,6 +75,46 @@ def check_library(x, y, sample_weight, feature_names):
     if kept is not None:
         design = design.take_rows(kept)
     return design, y, w, design.names if feature_names is None else feature_names
+
+
+def check_fit_inputs(x, y, sample_weight, feature_names, target_names, partial_out):
+    """``(x, y, w, feature_names, nuisance)`` of ``FloatingFStepwise.fit``.
+
+    The library, targets and weights as :func:`check_library` checks them
+    (``partial_out`` needs an in-memory library: see
+    :func:`~.partial.with_partial_out`), and the names' counts against them.
+    ``nuisance`` is None without ``partial_out``.
+    """
+    if partial_out is None:
+        x, y, w, feature_names = check_library(x, y, sample_weight, feature_names)
+        nuisance = None
+    else:
+        x, y, w, nuisance = with_partial_out(x, y, sample_weight, partial_out)
+    for label, names, size, what in (
+        ("feature_names", feature_names, x.shape[1], "x has"),
+        ("target_names", target_names, y.shape[1], "y has"),
+    ):
+        if names is not None and len(names) != size:
+            raise ValueError(
+                f"{label} has {len(names)} names but {what} {size} columns"
+            )
+    return x, y, w, feature_names, nuisance
+
+
+def with_partial_out(x_, y, sample_weight, partial_out):
+    """``(x, y, w, nuisance)`` checked, the rows pysindy drops (all-NaN
+    library or target rows) dropped from all four."""
+    if as_streamed(x_) is not None:
+        raise InvalidParameterError(
+            "partial_out needs the library as an in-memory array; a streamed "
+            "or dask design cannot be projected"
+        )
+    x, y, w, kept = check_data(x_, y, sample_weight)
+    n_rows = x.shape[0] if kept is None else np.shape(x_)[0]
+    nuisance = check_partial_out(partial_out, n_rows, y.shape[1])
+    if kept is not None:
+        nuisance = [n[kept] for n in nuisance]
+    return x, y, w, nuisance
 
 
 def _positive_int(value, name: str) -> int:

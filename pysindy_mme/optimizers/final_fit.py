@@ -18,21 +18,39 @@ from ._numeric import one_blas_thread
 from .anova import f_pvalue, fit_anova, lstsq_refined
 from .gram import GramState
 from .incremental_qr import IncrementalQR
+from .partial import settle_constant
 from .robust import robust_table_statistics
 from .screening import Screen
 
 __all__ = ["final_fit"]
 
 
-def final_fit(*args, **kwargs):
+def final_fit(*args, joint=None, **kwargs):
     """:func:`_final_fit` with BLAS on one thread.
 
     Its products and factorisations are small (``n x k``): two threads cost
     more in synchronisation than they save (a QR factorisation of 10,000 x
     21 took 0.1 s instead of 0.003 s on a loaded 2-core machine).
+
+    ``joint``: the original ``(x, y, partial_out columns)`` of a target
+    selected on projected rows; the fit then keeps the constant and
+    :func:`~.partial.settle_constant` settles it in the joint model.
     """
     with one_blas_thread():
-        return _final_fit(*args, **kwargs)
+        if joint is None:
+            return _final_fit(*args, **kwargs)
+        drop, fit_intercept = kwargs["drop_constant"], kwargs["fit_intercept"]
+        kwargs.update(drop_constant=False, fit_intercept=True)
+        fitted = _final_fit(*args, **kwargs)
+        return settle_constant(
+            *joint,
+            w=args[3],
+            fitted=fitted,
+            screen=args[4],
+            rule=kwargs["rule"],
+            drop=drop,
+            fit_intercept=fit_intercept,
+        )
 
 
 def _final_fit(

@@ -22,24 +22,27 @@ any units select the same terms; coefficients are converted back at the end.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from pysindy.optimizers import BaseOptimizer
-from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted
 
-from ..exceptions import ExcludedFeaturesWarning, StepwiseCycleWarning
 from ._checks import DEFAULT_ALPHA, DEFAULT_FLOAT_RATIO, check_params
-from ._interface import EstimatorInterface, array_ndim, warn_constant_lost
+from ._interface import (
+    EstimatorInterface,
+    array_ndim,
+    warn_constant_lost,
+    warn_cycle,
+    warn_excluded,
+    warn_not_settled,
+)
 from ._numeric import scaled_target
-from .design import check_library
+from .design import check_fit_inputs
 from .final_fit import final_fit
-from .gram import first_step_vectors, selection_state
-from .moments import tall_moments
-from .robust import rows_look_time_ordered
-from .rules import PAPER_F, PAPER_RATIO, ClassicRule, make_rule
-from .screening import Screen, screen_columns
+from .gram import selection_state
+from .partial import target_groups
+from .preparation import prepare_library
+from .rules import PAPER_F, PAPER_RATIO, ClassicRule
+from .screening import Screen
 from .selection import engage_phase_two, select
 from .summary import build_summary
 
@@ -239,6 +242,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         :class:`ExcludedFeaturesWarning` per fit.
     constant_feature_ : int or None
         The library column that carries the intercept, if any.
+    n_partialled_ : ndarray of int (n_targets,)
+        Independent ``partial_out`` columns projected out of each target
+        (0 without ``partial_out``).
     feature_names_, target_names_ : list of str or None
         Names given to :meth:`fit` (pysindy does not pass them: see
         :meth:`summary`).
@@ -366,7 +372,15 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """Not used: :meth:`fit` does the whole work (it needs the raw weights)."""
         raise NotImplementedError("FloatingFStepwise.fit does not call _reduce")
 
-    def fit(self, x_, y, sample_weight=None, feature_names=None, target_names=None):
+    def fit(
+        self,
+        x_,
+        y,
+        sample_weight=None,
+        feature_names=None,
+        target_names=None,
+        partial_out=None,
+    ):
         """Select the functions of each target and fit them by least squares.
 
         Parameters
@@ -382,6 +396,14 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             Names of the library columns (used by ``steps_`` and :meth:`summary`).
         target_names : sequence of str, optional
             Names of the targets.
+        partial_out : list of array-like (n_samples, k_t) or None, optional
+            One entry per target: regressors every model of that target
+            holds, fitted but not selected or reported (a grey-box model's
+            parameter sensitivities). The selection runs on the library and
+            target with their weighted projection on these columns removed
+            (Frisch-Waugh-Lovell: the coefficients are those of the joint
+            regression); see :mod:`pysindy_mme.optimizers.partial`. Needs an
+            in-memory library; each target is then screened on its own.
 
         Returns
         -------
@@ -390,55 +412,18 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         params = check_params(self)
         # predict's shape follows y's (scikit-learn's convention); coef_ 2-D
         y_ndim = array_ndim(y)
-        x, y, w, feature_names = check_library(x_, y, sample_weight, feature_names)
-        n_features = x.shape[1]
+        x, y, w, feature_names, nuisance = check_fit_inputs(
+            x_, y, sample_weight, feature_names, target_names, partial_out
+        )
         self._y_ndim = y_ndim
-        for label, names, size, what in (
-            ("feature_names", feature_names, n_features, "x has"),
-            ("target_names", target_names, y.shape[1], "y has"),
-        ):
-            if names is not None and len(names) != size:
-                raise ValueError(
-                    f"{label} has {len(names)} names but {what} {size} columns"
-                )
         self.feature_names_ = None if feature_names is None else list(feature_names)
         self.target_names_ = None if target_names is None else list(target_names)
-        self.n_features_in_ = n_features
+        self.n_features_in_ = n_features = x.shape[1]
         self.Theta_ = x
-
-        keep = w > 0
-        if not np.all(keep):
-            x, y, w = x[keep], y[keep], w[keep]
-        sw = np.sqrt(w)  # (the screen's pass also gives the first step's X^T e)
-        screen = screen_columns(
-            x, sw, float(w.sum()), params["tolerance"], first_step_vectors(sw, y)
-        )
-        if isinstance(self.time_ordered, str):
-            self.rows_in_time_order_ = rows_look_time_ordered(x, screen.eligible)
-        else:
-            self.rows_in_time_order_ = bool(self.time_ordered)
-        rule = make_rule(
-            params,
-            int(screen.eligible.sum()),
-            float(w.sum()),
-            x.shape[0],
-            robust=self.autocorrelation is not None and self.rows_in_time_order_,
-        )
-        self.excluded_ = screen.excluded
-        self.constant_feature_ = screen.carrier
-        if screen.excluded:
-            listed = "; ".join(
-                f"{self._name(j)}: {why}" for j, why in screen.excluded.items()
-            )
-            warnings.warn(
-                f"{len(screen.excluded)} library column(s) can never be selected "
-                f"({listed})",
-                ExcludedFeaturesWarning,
-                stacklevel=2,
-            )
+        if not np.all(w > 0):
+            x, y, w, nuisance = _positive_rows(x, y, w, nuisance)
 
         n_targets = y.shape[1]
-        moments = tall_moments(x, w, y, screen, rule.lags if rule.robust else None)
         coef = np.zeros((n_targets, n_features))
         intercept = np.zeros(n_targets)
         self.history_ = [coef.copy()]
@@ -451,14 +436,28 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self.phase_two_ = np.zeros(n_targets, dtype=bool)
         self.phase_one_lag1_ = np.zeros(n_targets)
         self.joint_tests_ = [None] * n_targets
+        self.n_partialled_ = np.zeros(n_targets, dtype=int)
+        self.excluded_ = {}
         lost = []
-        for t in range(n_targets):
-            coef[t], intercept[t], significant_lost = self._fit_target(
-                x, y[:, t], w, screen, rule, t, coef, moments
+        for g, (xg, yg, targets, rank) in enumerate(target_groups(x, y, w, nuisance)):
+            self.n_partialled_[targets] = rank
+            # the rows' time order is read on the first library only
+            order = self.time_ordered if g == 0 else self.rows_in_time_order_
+            screen, rule, moments, self.rows_in_time_order_ = prepare_library(
+                xg, yg, w, params, self.autocorrelation, order
             )
-            self.history_.append(coef.copy())
-            if significant_lost:
-                lost.append(self._target_name(t))
+            self.excluded_.update(screen.excluded)
+            self.constant_feature_ = screen.carrier
+            for local, t in enumerate(targets):
+                joint = (x, y[:, t], nuisance[t]) if rank else None
+                coef[t], intercept[t], significant_lost = self._fit_target(
+                    xg, yg[:, local], w, screen, rule, t, coef, moments, local, joint
+                )
+                self.history_.append(coef.copy())
+                if significant_lost:
+                    lost.append(self._target_name(t))
+        if self.excluded_:
+            warn_excluded(self.excluded_, self._name)
         if lost:
             warn_constant_lost(lost)
         self.coef_ = coef
@@ -530,15 +529,18 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """The paper's Phase I rule, for a strongly autocorrelated residual."""
         return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
 
-    def _fit_target(self, x, y, w, screen: Screen, rule, target: int, coef, moments):
-        """Select and fit one target; returns its coefficient row and intercept."""
+    def _fit_target(
+        self, x, y, w, screen: Screen, rule, target, coef, moments, local, joint=None
+    ):
+        """Select and fit one target (``target`` among all, ``local`` in the
+        ``moments``; ``joint``: see :func:`final_fit`): its row and intercept."""
         n_eff = float(w.sum())
         sw = np.sqrt(w)
         y_scale, yt = scaled_target(y)  # in units of its largest magnitude
 
         def make_state():
             return selection_state(
-                moments, target, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
+                moments, local, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
             )
 
         state, result, steps_history, rule = self._select(
@@ -547,23 +549,10 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self.history_ += steps_history
         if result.cycle is not None:
             self.cycle_detected_ = True
-            c = result.cycle
-            warnings.warn(
-                f"FloatingFStepwise returned to a model it had already visited "
-                f"(target {target}, phase {c['phase']}, iteration {c['iteration']}): "
-                f"a cycle of {c['length']} models; stopping at the one with the "
-                "largest overall F-ratio",
-                StepwiseCycleWarning,
-                stacklevel=3,
-            )
+            warn_cycle(target, result.cycle)
         if not result.converged:
             self.converged_ = False
-            warnings.warn(
-                f"FloatingFStepwise reached max_iter={self.max_iter} on target "
-                f"{target} before the selection settled; the last model is kept",
-                ConvergenceWarning,
-                stacklevel=3,
-            )
+            warn_not_settled(target, self.max_iter)
         self.steps_.append(result.steps)
         self.n_iter_[target] = len(result.steps)
         self.phase_two_[target] = result.phase_two
@@ -580,6 +569,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             rule=rule,
             drop_constant=self.drop_insignificant_constant,
             fit_intercept=bool(self.fit_intercept),
+            joint=joint,
         )
         self.anova_.append(table)
         self.intercept_dropped_[target] = dropped
@@ -598,3 +588,10 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """
         check_is_fitted(self, "coef_")
         return build_summary(self, feature_names, target_names, target)
+
+
+def _positive_rows(x, y, w, nuisance):
+    """The rows of positive weight (rows of weight 0 are ignored)."""
+    keep = w > 0
+    nuisance = None if nuisance is None else [n[keep] for n in nuisance]
+    return x[keep], y[keep], w[keep], nuisance

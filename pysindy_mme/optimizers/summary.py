@@ -169,6 +169,14 @@ def _notes(opt, t) -> list:
             f"({table.intercept_partial_f:.4g}) is below the removal "
             "threshold; coef_ is refit through the origin."
         )
+    partialled = getattr(opt, "n_partialled_", None)
+    if partialled is not None and partialled[t]:
+        notes.append(
+            f"  Note: partial_out: {_plural(int(partialled[t]), 'column')} "
+            "projected out of the library and the target first (every model "
+            "holds them; the F-ratios' degrees of freedom are not reduced by "
+            "them)."
+        )
     joint = (getattr(opt, "joint_tests_", None) or [None] * (t + 1))[t]
     if joint is not None:
         outcome = (
