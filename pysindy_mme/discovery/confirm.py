@@ -33,8 +33,11 @@ space (:mod:`.output_error`):
    function of each error state would have, from the fitted KKT system)
    ranks the candidates; the best enters if it is significant after a
    Bonferroni correction, confirmed by an actual fit;
-5. repeat 2-4 until nothing changes; finally the extended model is F-tested
-   against the assumed one.
+5. repeat 2-4 until nothing changes; if a model visited on the way (its
+   fit joined) beats the one the search ended on, the search returns to it
+   (:func:`_best_visited`: the steps are local, and a chain of BIC swaps and
+   redundancies can end far from the best); finally the extended model is
+   F-tested against the assumed one.
 
 Every term is tested at the Bonferroni level ``alpha / n_candidates`` (it
 was picked from the whole library), so that the chance of reporting any
@@ -139,6 +142,8 @@ class _Search:
         self.steps_of = None  # fit -> RK4 steps its model needs, see accept
         # term sets for which no fit that joins was found (_joined_without)
         self.unjoined = set()
+        # every current model whose fit joined: (slots, fit), see _best_visited
+        self.visited = []
 
     # ------------------------------------------------------------ MME start
     def mme_fit(self) -> OutputErrorFit:
@@ -381,6 +386,8 @@ class _Search:
                 self.note(f"refused {names}: {_NOT_JOINED}")
             return False
         self.slots, self.fit = list(slots), polished
+        if polished.joined:
+            self.visited.append((list(slots), polished))
         return True
 
     def joins_when_finer(self, fit) -> bool:
@@ -865,7 +872,79 @@ def confirm_terms(
             changed = True
         if not changed:
             break
+    _best_visited(search)
     return _verdict(search, assumed, alpha, min_effect)
+
+
+def _run_as_a_model(search: _Search, fit) -> OutputErrorFit:
+    """``fit``'s model with its parameters held (only the initial state
+    fitted), at the search's RK4 steps or, if its trajectory does not join
+    there, at the steps its terms need (``search.steps_of``)."""
+    held = search.engine.fit_held(fit.slots, fit.theta, fit.x)
+    if (held.ok and held.joined) or search.steps_of is None:
+        return held
+    needed = int(search.steps_of(fit))
+    if needed <= search.engine.n_substeps:
+        return held
+    return search.engine.with_substeps(needed).fit_held(fit.slots, fit.theta, fit.x)
+
+
+def _best_visited(search: _Search) -> bool:
+    """Return to a model the search visited that beats where it ended.
+
+    The search's steps are local and some compare fits by BIC (swaps, merged
+    terms, groups in place of weaker terms) or drop terms made redundant by
+    others; a chain of them can end on a model that an earlier one beats
+    outright (tanks seed 5: the square-root law, then constants and ramps in
+    its place, then a wall alone, with 100x the misfit). A visited model
+    (its fit joined) beats the final one if it fits better with no more
+    terms, or if its extra terms would pass the search's own test of an
+    addition (:meth:`_Search.improves`); of those, the lowest BIC is taken.
+    A final fit that does not join is judged by its model run as a model;
+    one whose model cannot even be run (its trajectory does not join with
+    only the initial state fitted, at the RK4 steps its terms need) is
+    beaten by every visited model.
+    """
+    final = search.fit
+    if not search.slots or not search.visited:
+        return False
+    runnable = final.joined
+    if not final.joined:
+        # its transcription cost is no model's: judge its model run as a
+        # model (only the initial state fitted), as accept() does, at the
+        # RK4 steps its terms need if the search's are too few (a wall)
+        held = _run_as_a_model(search, final)
+        runnable = held.ok and held.joined
+        final = replace(held, n_free=final.n_free)
+    better = []
+    for slots, fit in search.visited:
+        if set(slots) == set(search.slots):
+            continue
+        extra = len(slots) - len(search.slots)
+        if not runnable or (
+            fit.cost < final.cost
+            and (extra <= 0 or search.improves(final, fit, n_added=extra)[2])
+        ):
+            better.append((slots, fit))
+    if not better:
+        return False
+    slots, fit = better[0]
+    for other in better[1:]:
+        if better_bic(other[1], fit):
+            slots, fit = other
+    p = partial_f_p_value(final, fit, max(len(slots) - len(search.slots), 1))
+    how = f"p = {p:.2g}" if runnable else "its model cannot be run as a model"
+    for slot in search.slots:
+        if slot not in slots:
+            search.reject(slot, "the search ended on a model an earlier one beats")
+    search.rejected = [(s, why) for s, why in search.rejected if s not in slots]
+    names = ", ".join(search.describe(slot) for slot in slots)
+    search.note(
+        f"returned to {names}: a model visited earlier that beats the one the "
+        f"search ended on (cost {fit.cost:.6g} against {final.cost:.6g}; {how})"
+    )
+    search.slots, search.fit = list(slots), fit
+    return True
 
 
 def _prune(search: _Search, alpha_term, min_effect) -> bool:

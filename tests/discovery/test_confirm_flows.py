@@ -25,57 +25,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+from confirm_stand_ins import stand_in_fit as _fit
+from confirm_stand_ins import stand_in_search as _search
 
-from pysindy_mme.discovery.confirm import _flow_step, _Search
+from pysindy_mme.discovery.confirm import _flow_step
 
 WEIR_H1, WEIR_H2, OTHER = (0, 2), (1, 2), (1, 0)
-
-
-def _fit(slots, cost, joined=True, p=None):
-    """A stand-in for an OutputErrorFit: what the search reads of one."""
-    k = len(slots)
-    p_values = np.full(k, 1e-12) if p is None else np.asarray(p, float)
-    return SimpleNamespace(
-        slots=tuple(slots),
-        coefficients=np.full(k, 0.44),
-        physical=np.zeros(3),
-        offsets=np.zeros(0),
-        cost=float(cost),
-        joined=joined,
-        ok=True,
-        converged=joined,
-        n_iter=5,
-        message="",
-        residual_variance=1.0,
-        inflation=1.0,
-        dof=900,
-        n_residuals=917,
-        n_free=2 + k,
-        coefficient_p_values=lambda: p_values,
-        bic=lambda c=1.0, cost=cost, k=k: cost / c + (2 + k) * np.log(917),
-    )
-
-
-def _search(fits: dict, assumed_cost=9204.0):
-    """A search whose every fit of a set of terms is ``fits[frozenset]``."""
-    search = _Search(
-        engine=None,
-        assumed=_fit((), assumed_cost),
-        alpha_term=1e-4,
-        describe=lambda slot: f"c{slot[1]} in x{slot[0]}'",
-        pool=[],
-        progress=None,
-    )
-    search.effects = lambda fit: np.ones(len(fit.slots))  # large: p decides
-    calls = []
-
-    def refit(slots, coefs, start, polish=False):
-        calls.append(frozenset(slots))
-        return fits[frozenset(slots)]
-
-    search.refit = refit
-    search.calls = calls
-    return search
 
 
 def test_a_smaller_fit_that_does_not_join_is_no_evidence():
