@@ -231,7 +231,8 @@ def _fit_each(opt, theta, d, given):
     for k in range(d.shape[1]):
         one = clone(opt)
         cols = given[k] if given[k] is not None else np.zeros((len(d), 0))
-        x_p, y_p, _ = project_out(theta, d[:, [k]], cols, np.ones(len(d)))
+        # through the origin (pysindy's optimizers): the columns as given
+        x_p, y_p, _ = project_out(theta, d[:, [k]], cols, np.ones(len(d)), False)
         fitted.append(one.fit(x_p, y_p))
     stacked = copy.deepcopy(fitted[0])
     stacked.coef_ = np.vstack([np.asarray(f.coef_).reshape(1, -1) for f in fitted])

@@ -91,13 +91,15 @@ def check_partial_out(partial_out, n_rows: int, n_targets: int):
     return out
 
 
-def _basis(nuisance: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """An orthonormal basis (in the ``w``-weighted rows) of the centred columns."""
+def _basis(nuisance: np.ndarray, w: np.ndarray, centre: bool) -> np.ndarray:
+    """An orthonormal basis (in the ``w``-weighted rows) of the columns,
+    centred first if ``centre``."""
     if nuisance.shape[1] == 0:
         return np.zeros((nuisance.shape[0], 0))
     sw = np.sqrt(w)
-    centred = nuisance - (w @ nuisance) / w.sum()
-    a = centred * sw[:, None]
+    if centre:
+        nuisance = nuisance - (w @ nuisance) / w.sum()
+    a = nuisance * sw[:, None]
     norms = np.linalg.norm(a, axis=0)
     a = a[:, norms > 0]
     if a.shape[1] == 0:
@@ -108,27 +110,33 @@ def _basis(nuisance: np.ndarray, w: np.ndarray) -> np.ndarray:
     return q[:, :rank]
 
 
-def project_out(x: np.ndarray, y: np.ndarray, nuisance: np.ndarray, w: np.ndarray):
+def project_out(x, y, nuisance, w, centre: bool = True):
     """``(x_p, y_p, rank)``: ``x`` and ``y`` minus their weighted projections
-    on the centred ``nuisance`` columns.
+    on the ``nuisance`` columns.
 
     ``w`` are positive frequency weights. The projection is orthogonal in the
-    weighted inner product, so that the weighted least squares of ``y_p`` on
-    ``x_p`` (with an intercept) gives the library coefficients of the
-    weighted least squares of ``y`` on ``x``, ``nuisance`` and a constant.
-    Non-finite library columns stay non-finite (the screen sets them aside).
+    weighted inner product. With ``centre`` (for a fit with an intercept, as
+    FloatingFStepwise's selection always has) the columns are centred first:
+    the weighted least squares of ``y_p`` on ``x_p`` with an intercept gives
+    the library coefficients of that of ``y`` on ``x``, ``nuisance`` and a
+    constant, and constant columns of ``x`` stay as they are. Without it
+    (for a fit through the origin, pysindy's convention, with any constant
+    in the library) the fit of ``y_p`` on ``x_p`` gives those of ``y`` on
+    ``x`` and ``nuisance``. Non-finite library columns stay non-finite (the
+    screen sets them aside).
     """
-    q = _basis(nuisance, w)
+    q = _basis(nuisance, w, centre)
     if q.shape[1] == 0:
         return x, y, 0
     sw = np.sqrt(w)[:, None]
     with np.errstate(invalid="ignore", over="ignore"):
         x_p = x - (q @ (q.T @ (x * sw))) / sw
         y_p = y - (q @ (q.T @ (y * sw))) / sw
-        # a constant column is orthogonal to the centred columns: kept exact
+        # centred: a constant column is orthogonal to the columns, kept exact
         # (rounding would make it a near-constant the screen sets aside)
         constant = np.ptp(x, axis=0) == 0
-    x_p[:, constant] = x[:, constant]
+    if centre:
+        x_p[:, constant] = x[:, constant]
     return x_p, y_p, q.shape[1]
 
 
