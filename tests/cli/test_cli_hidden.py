@@ -190,6 +190,7 @@ def _argv(folder, variance, out, *extra):
     ]
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 def test_the_advice_names_the_option_and_the_option_finds_the_law(hysteresis_files):
     folder, machine, variance = hysteresis_files
     # 1. states y, v only: the model error has memory, the advice names the option

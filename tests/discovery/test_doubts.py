@@ -6,6 +6,7 @@ import warnings
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from paper_case import VDP, paper_discover
 
 from pysindy_mme import PowerLibrary
@@ -74,6 +75,7 @@ def test_generalisation_note_only_when_validation_misses_and_fit_does_not():
     assert "x1 2.3x" in note and "x1 in x2'" in note and "try" in note
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 def test_look_alike_terms_that_fit_one_record_only_are_flagged():
     """The paper's Table I library on seed 2 of the paper's record: six
     look-alike terms fit the record to the noise, and miss a validation

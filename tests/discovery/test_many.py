@@ -96,6 +96,7 @@ def cluster_client():
         yield client
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 def test_fifty_records_on_a_local_cluster_match_fifty_serial_calls(
     fifty, cluster_client, capsys
 ):

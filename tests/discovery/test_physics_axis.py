@@ -92,6 +92,7 @@ def test_axis_coulomb_and_offset_over_ten_seeds():
     assert len(failures) <= 1, failures
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 def test_axis_short_record_names_friction_and_the_smoothing():
     # 10 s of the same axis: the answer is right; the report says how the
     # kink was integrated and what half the width does (with a 50 nm encoder

@@ -170,6 +170,7 @@ def seed0():
     return tanks_study(0)
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 def test_report_names_the_clipping_seed0(seed0):
     """The 10 V ceiling is found and censored by the default ``clipped="auto"``."""
     res, _, _ = seed0
@@ -183,6 +184,7 @@ def test_report_names_the_clipping_seed0(seed0):
     assert ceiling.count == int(np.sum(MACHINE.record(0).y >= 10.0))
 
 
+@pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
 @TANKS_NOT_MET
 def test_tanks_seed0(seed0):
     res, test, sec = seed0
