@@ -257,6 +257,14 @@ class _Search:
     def reject(self, slot, reason):
         self.rejected.append((slot, reason))
 
+    def replaced(self, before, kept, why):
+        """``before``'s terms not in ``kept`` rejected with ``why``; ``kept``'s
+        earlier rejections withdrawn (they are in the model now)."""
+        for slot in before:
+            if slot not in kept:
+                self.reject(slot, why)
+        self.rejected = [(s, r) for s, r in self.rejected if s not in kept]
+
     # ------------------------------------------------------------- backward
     def effects(self, fit) -> np.ndarray:
         """Each coefficient's share of the misfit it removes (linearised).
@@ -769,10 +777,7 @@ def _try_together(search: _Search, slots, starts, kept_note, dropped_why) -> boo
     before = list(search.slots)
     if not search.accept(kept, trial):
         return False
-    for slot in before:
-        if slot not in kept:
-            search.reject(slot, dropped_why)
-    search.rejected = [(s, why) for s, why in search.rejected if s not in kept]
+    search.replaced(before, kept, dropped_why)
     names = ", ".join(search.describe(slot) for slot in added)
     search.note(
         kept_note(names, p)
@@ -934,10 +939,9 @@ def _best_visited(search: _Search) -> bool:
             slots, fit = other
     p = partial_f_p_value(final, fit, max(len(slots) - len(search.slots), 1))
     how = f"p = {p:.2g}" if runnable else "its model cannot be run as a model"
-    for slot in search.slots:
-        if slot not in slots:
-            search.reject(slot, "the search ended on a model an earlier one beats")
-    search.rejected = [(s, why) for s, why in search.rejected if s not in slots]
+    search.replaced(
+        search.slots, slots, "the search ended on a model an earlier one beats"
+    )
     names = ", ".join(search.describe(slot) for slot in slots)
     search.note(
         f"returned to {names}: a model visited earlier that beats the one the "

@@ -82,7 +82,7 @@ def check_fit_inputs(x, y, sample_weight, feature_names, target_names, partial_o
 
     The library, targets and weights as :func:`check_library` checks them
     (``partial_out`` needs an in-memory library: see
-    :func:`~.partial.with_partial_out`), and the names' counts against them.
+    :func:`with_partial_out`), and the names' counts against them.
     ``nuisance`` is None without ``partial_out``.
     """
     if partial_out is None:

@@ -25,7 +25,7 @@ from .screening import Screen
 __all__ = ["final_fit"]
 
 
-def final_fit(*args, joint=None, **kwargs):
+def final_fit(state, x, y, w, screen, *, joint=None, **kwargs):
     """:func:`_final_fit` with BLAS on one thread.
 
     Its products and factorisations are small (``n x k``): two threads cost
@@ -38,15 +38,15 @@ def final_fit(*args, joint=None, **kwargs):
     """
     with one_blas_thread():
         if joint is None:
-            return _final_fit(*args, **kwargs)
+            return _final_fit(state, x, y, w, screen, **kwargs)
         drop, fit_intercept = kwargs["drop_constant"], kwargs["fit_intercept"]
         kwargs.update(drop_constant=False, fit_intercept=True)
-        fitted = _final_fit(*args, **kwargs)
+        fitted = _final_fit(state, x, y, w, screen, **kwargs)
         return settle_constant(
             *joint,
-            w=args[3],
+            w=w,
             fitted=fitted,
-            screen=args[4],
+            screen=screen,
             rule=kwargs["rule"],
             drop=drop,
             fit_intercept=fit_intercept,

@@ -132,11 +132,12 @@ def project_out(x, y, nuisance, w, centre: bool = True):
     with np.errstate(invalid="ignore", over="ignore"):
         x_p = x - (q @ (q.T @ (x * sw))) / sw
         y_p = y - (q @ (q.T @ (y * sw))) / sw
-        # centred: a constant column is orthogonal to the columns, kept exact
-        # (rounding would make it a near-constant the screen sets aside)
-        constant = np.ptp(x, axis=0) == 0
-    if centre:
-        x_p[:, constant] = x[:, constant]
+        if centre:
+            # a constant column is orthogonal to the centred columns: kept
+            # exact (rounding would make it a near-constant the screen sets
+            # aside)
+            constant = np.ptp(x, axis=0) == 0
+            x_p[:, constant] = x[:, constant]
     return x_p, y_p, q.shape[1]
 
 
