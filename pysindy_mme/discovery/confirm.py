@@ -937,8 +937,13 @@ def _best_visited(search: _Search) -> bool:
     for other in better[1:]:
         if better_bic(other[1], fit):
             slots, fit = other
-    p = partial_f_p_value(final, fit, max(len(slots) - len(search.slots), 1))
-    how = f"p = {p:.2g}" if runnable else "its model cannot be run as a model"
+    extra = len(slots) - len(search.slots)
+    if not runnable:
+        how = "its model cannot be run as a model"
+    elif extra > 0:  # a test of the terms it adds; otherwise no test is needed
+        how = f"p = {partial_f_p_value(final, fit, extra):.2g} for its {extra} more"
+    else:
+        how = "no more terms"
     search.replaced(
         search.slots, slots, "the search ended on a model an earlier one beats"
     )

@@ -52,6 +52,7 @@ def test_a_runnable_final_model_is_judged_by_its_model_run_as_a_model():
     search.visited = [(LAW, law)]
     search.slots, search.fit = list(WALL), _final()
     assert _best_visited(search) and search.slots == LAW
+    assert "for its 4 more" in search.log[-1]
     # ... but not when the extra terms would not pass as additions
     search = _with_engine(_search({}), _fit(WALL, 6474.0))
     search.visited = [(LAW, law)]
@@ -74,3 +75,4 @@ def test_fewer_terms_and_a_lower_cost_win_without_a_test():
     search.visited = [(LAW[:1], few)]
     search.slots, search.fit = list(WALL), _fit(WALL, 900.0)
     assert _best_visited(search) and search.fit is few
+    assert "no more terms" in search.log[-1] and "p = " not in search.log[-1]
