@@ -8,6 +8,7 @@ import numpy as np
 
 from .features import SelectedFeatures
 from .model import as_model_function, simulate_model
+from .relaxation import Overflows
 from .tables import sig
 
 __all__ = ["ExtendedModel"]
@@ -61,11 +62,18 @@ class _Column:
 
 
 class _Rates:
-    """:meth:`ExtendedModel.unchecked`: ``assumed(x, t, u) + Theta(z) C + b``."""
+    """:meth:`ExtendedModel.unchecked`: ``assumed(x, t, u) + Theta(z) C + b``.
 
-    def __init__(self, assumed, features, coef, intercept):
+    With ``split`` (the overflow terms, solved exactly around each RK4 step:
+    :mod:`~pysindy_mme.core.relaxation`), ``C`` lacks them and ``full`` is
+    the whole right-hand side (for adaptive integrators).
+    """
+
+    def __init__(self, assumed, features, coef, intercept, split=None, full=None):
         self.assumed, self.features = assumed, features
         self.coef, self.intercept = coef, intercept
+        self.split = split
+        self.full = self if full is None else full
 
     def __call__(self, x, t, u=None):
         if self.coef is None:
@@ -241,7 +249,25 @@ class ExtendedModel:
         if not self.active_.size:
             return _Rates(assumed, None, None, b)
         coef = np.ascontiguousarray(self.correction_coef_[:, self.active_].T)
-        return _Rates(assumed, self._features, coef, b)
+        full = _Rates(assumed, self._features, coef, b)
+        # the overflow terms of states: solved exactly around each RK4 step
+        slots = [(int(i), int(k)) for k, i in zip(*np.nonzero(coef))]
+        overflows = Overflows(slots, self._features.overflow_columns(), self.n_states)
+        if not overflows:
+            return full
+        smooth = coef.copy()
+        for position in overflows.positions:
+            i, k = slots[position]
+            smooth[k, i] = 0.0
+        values = np.array([coef[k, i] for i, k in slots])
+        return _Rates(assumed, self._features, smooth, b, overflows.bound(values), full)
+
+    def split_form(self):
+        """:meth:`unchecked` if the model has overflow terms of states, which
+        integrators solve exactly around each RK4 step
+        (:mod:`~pysindy_mme.core.relaxation`); else None."""
+        bare = self.unchecked()
+        return bare if getattr(bare, "split", None) is not None else None
 
     def simulate(
         self,

@@ -131,6 +131,15 @@ class SelectedFeatures:
             if not _agrees(self._fast(z_reference), slow):
                 self._factors = None
 
+    def overflow_columns(self) -> dict:
+        """``{position: (variable, level)}`` of the library's overflow columns
+        among ``indices`` (see ``PhysicsLibrary.overflow_columns``)."""
+        own = getattr(self.library, "overflow_columns", None)
+        if not callable(own):
+            return {}
+        found = own()
+        return {k: found[int(c)] for k, c in enumerate(self.indices) if int(c) in found}
+
     @property
     def is_fast(self) -> bool:
         return self._own or self._factors is not None

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .jacobian import rowwise_jacobian
+from .relaxation import split_form
 
 __all__ = [
     "InputSignal",
@@ -176,6 +177,7 @@ def rk4_flow(
     jac_x=None,
     jac_p=None,
     n_params: int = 0,
+    split=None,
 ):
     """Classical RK4 over ``K`` independent intervals at once.
 
@@ -194,6 +196,12 @@ def rk4_flow(
         ``df/dx``; with it the derivatives ``D`` are returned.
     jac_p : callable ``(X, s, u) -> (K, n, p)`` or ``(n, p)``, optional
         ``df/dp`` for ``n_params`` parameters held constant over the interval.
+    split : callable ``(X, D, h) -> (X, D)``, optional
+        A part of the dynamics solved exactly, not by RK4 (the overflow
+        terms, :class:`~pysindy_mme.core.relaxation.Overflows`): it advances
+        ``X`` (and ``D``, None without ``jac_x``) by ``h`` ``(K, 1)``. Each
+        step is Strang-split: half a step of it, the RK4 step of ``rhs``,
+        half a step of it.
 
     Returns
     -------
@@ -233,6 +241,8 @@ def rk4_flow(
         # reuses it for the Jacobians instead of evaluating it again. The
         # same numbers in the same operations as value-stages-first.
         jac = D is not None
+        if split is not None:
+            X, D = split(X, D, 0.5 * hs)
         k1 = rhs(X, tj, u0)
         if jac:
             dk1 = derivative(X, tj, u0, D)
@@ -250,6 +260,8 @@ def rk4_flow(
             dk4 = derivative(X4, end, u1, D + hs3 * dk3)
             D = D + hs3 / 6.0 * (dk1 + 2.0 * dk2 + 2.0 * dk3 + dk4)
         X = X + hs / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        if split is not None:
+            X, D = split(X, D, 0.5 * hs)
     return FlowResult(X, D)
 
 
@@ -296,6 +308,7 @@ def simulate(
     inputs: InputSignal | None = None,
     substeps: int = 1,
     bound: float | None = None,
+    split=None,
 ) -> SimulationResult:
     """Integrate ``B`` trajectories forward in time with RK4 (free runs).
 
@@ -310,11 +323,16 @@ def simulate(
         A trajectory whose largest state magnitude exceeds this is stopped
         (NaN from there, recorded in ``diverged_at``). Default: ``1e8`` times
         the largest initial magnitude (at least 1).
+    split : callable ``(X, D, h) -> (X, D)``, optional
+        A part solved exactly around each RK4 step (as in :func:`rk4_flow`);
+        default the model's own (:func:`~pysindy_mme.core.relaxation.split_form`).
 
     Returns
     -------
     SimulationResult
     """
+    if split is None:
+        rhs, split = split_form(rhs)
     x = np.array(np.atleast_2d(x0), dtype=float)
     t = np.asarray(t, dtype=float)
     n_traj = x.shape[0]
@@ -336,11 +354,15 @@ def simulate(
                     )
                 else:
                     ua = um = ub = None
+                if split is not None:
+                    x = split(x, None, 0.5 * h)[0]
                 k1 = rhs(x, s0, ua)
                 k2 = rhs(x + 0.5 * h * k1, s0 + 0.5 * h, um)
                 k3 = rhs(x + 0.5 * h * k2, s0 + 0.5 * h, um)
                 k4 = rhs(x + h * k3, s0 + h, ub)
                 x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                if split is not None:
+                    x = split(x, None, 0.5 * h)[0]
             bad = ~np.all(np.isfinite(x) & (np.abs(x) < bound), axis=1)
             new = bad & (diverged < 0)
             if np.any(new):
@@ -399,11 +421,20 @@ def simulate_guided(
 
     scale = max(1.0, float(np.max(np.abs(x))))
     bound = 1e8 * scale if bound is None else bound
+    # a model's overflow terms, solved exactly around each RK4 step
+    rhs, split = split_form(rhs)
     kd = 2 * n - 1
     for _ in range(max_iter):
         with np.errstate(all="ignore"):
             flow = rk4_flow(
-                rhs, x[:-1], t[:-1], h, inputs.on_intervals, substeps, jac_x=jac_x
+                rhs,
+                x[:-1],
+                t[:-1],
+                h,
+                inputs.on_intervals,
+                substeps,
+                jac_x=jac_x,
+                split=split,
             )
         defect = flow.phi - x[1:]
         A = flow.D
@@ -429,4 +460,4 @@ def simulate_guided(
         uu = None if u is None else np.broadcast_to(u, (X.shape[0], u.shape[-1]))
         return rhs(X, np.full(X.shape[0], s), uu)
 
-    return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound)
+    return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)

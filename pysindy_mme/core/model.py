@@ -18,6 +18,7 @@ from scipy.integrate import solve_ivp
 
 from .integrate import InputSignal, simulate
 from .jacobian import rowwise_jacobian
+from .relaxation import Overflows, overflow_columns_of
 
 __all__ = ["ModelFunction", "as_model_function", "simulate_model"]
 
@@ -203,7 +204,10 @@ def _lean(f: ModelFunction, x0, t0, u0):
 
 def _run_adaptive(f, x0, t, signal, method, rtol, atol, allowed, limit):
     """``solve_ivp``: ``(x, reason or None, whether the budget ran out)``."""
+    # an adaptive stepper integrates the whole right-hand side (a model's
+    # overflow terms included: see _Rates.full)
     lean = _lean(f, x0, t[0], signal.at(t[:1]))
+    lean = getattr(lean, "full", lean)
     budget = [allowed]
     reached = [t[0]]  # the furthest time evaluated: how far a stalled run got
 
@@ -261,7 +265,8 @@ def _run_rk4(f, x0, t, signal, substeps, limit):
         def rhs(x, s, u):  # integrate.simulate's form: s a float, u (m,)
             return lean(x, np.array([s]), None if u is None else u[None, :])
 
-        run = simulate(rhs, x0, t, inputs, substeps=substeps, bound=limit)
+        split = getattr(lean, "split", None)
+        run = simulate(rhs, x0, t, inputs, substeps=substeps, bound=limit, split=split)
     except (ValueError, FloatingPointError) as exc:
         return out, f"the integrator failed ({exc})"
     out = run.x[0]
@@ -278,6 +283,7 @@ def _run_rk4(f, x0, t, signal, substeps, limit):
         None if inputs is None else inputs.subset(k - 1, k + 1),
         substeps=substeps,
         bound=np.inf,
+        split=split,
     )
     finite = bool(np.all(np.isfinite(again.x[0, 1])))
     return out, "it left the bound" if finite else "it stopped being finite"
@@ -450,10 +456,22 @@ class ParametricModel:
         self.n_physical = int(n_physical)
         self.features = features
         self.slots = [(int(i), int(c)) for i, c in slots]
-        self.used = sorted({c for _, c in self.slots})
+        # overflow terms of a state are solved exactly around each RK4 step
+        # (:mod:`~pysindy_mme.core.relaxation`), not in the right-hand side
+        self.overflows = Overflows(
+            self.slots, overflow_columns_of(features), self.n_states
+        )
+        self._smooth = [
+            k for k in range(len(self.slots)) if k not in self.overflows.positions
+        ]
+        # a base model with overflow terms of its own (an ExtendedModel's
+        # bare right-hand side) brings their split, at its fixed coefficients
+        self._base_split = getattr(base, "split", None)
+        smooth_slots = [self.slots[k] for k in self._smooth]
+        self.used = sorted({c for _, c in smooth_slots})
         position = {c: k for k, c in enumerate(self.used)}
-        self._rows = np.array([i for i, _ in self.slots], dtype=int)
-        self._cols = np.array([position[c] for _, c in self.slots], dtype=int)
+        self._rows = np.array([i for i, _ in smooth_slots], dtype=int)
+        self._cols = np.array([position[c] for _, c in smooth_slots], dtype=int)
         self.n_params = self.n_physical + len(self.slots) + int(n_extra)
         self._last = (None, None, None)  # (x, u, features at x): one-entry cache
 
@@ -478,31 +496,50 @@ class ParametricModel:
         """The assumed model alone at its parameters ``theta[:n_physical]``."""
         return np.array(self.base(x, t, u, theta[: self.n_physical]), dtype=float)
 
+    def _coefficients(self, theta):
+        """The coefficients of the terms in the right-hand side (the
+        overflow terms are solved apart: :meth:`split_at`)."""
+        return theta[self.n_physical : self.n_physical + len(self.slots)][self._smooth]
+
     def _coefficient_matrix(self, theta):
         coef = np.zeros((len(self.used), self.n_states))
-        c = theta[self.n_physical : self.n_physical + len(self.slots)]
-        np.add.at(coef, (self._cols, self._rows), c)
+        np.add.at(coef, (self._cols, self._rows), self._coefficients(theta))
         return coef
 
     def __call__(self, x, t, u, theta) -> np.ndarray:
         out = self.base_part(x, t, u, theta)
-        if self.slots:
+        if self.used:
             out += self._phi(x, u) @ self._coefficient_matrix(theta)
         return out
 
+    def split_at(self, theta, first_column=None):
+        """The overflow terms at ``theta`` as ``split(X, D, h)`` (user units)
+        for :func:`~pysindy_mme.core.integrate.rk4_flow`, or None. With
+        ``first_column``, the column of ``D`` that holds ``theta[0]``: the
+        split then updates the coefficients' columns too."""
+        if not self.overflows:
+            return self._base_split
+        coefs = np.asarray(theta, dtype=float)[
+            self.n_physical : self.n_physical + len(self.slots)
+        ]
+        column_of = None
+        if first_column is not None:
+            column_of = _ColumnOf(int(first_column) + self.n_physical)
+        own = self.overflows.bound(coefs, column_of)
+        return own if self._base_split is None else _Both(self._base_split, own)
+
     @property
     def has_exact_correction_jacobian(self) -> bool:
-        return not self.slots or hasattr(self.features, "gradient")
+        return not self.used or hasattr(self.features, "gradient")
 
     def correction_jacobian(self, x, u, theta) -> np.ndarray:
         """``d (correction) / dx``, ``(K, n, n)``, from the features' gradient."""
         K, n = x.shape
-        if not self.slots:
+        if not self.used:
             return np.zeros((K, n, n))
         grad = self.features.gradient(self._z(x, u), self.used)
-        c = theta[self.n_physical : self.n_physical + len(self.slots)]
         out = np.zeros((K, n, n))
-        for state, col, coef in zip(self._rows, self._cols, c):
+        for state, col, coef in zip(self._rows, self._cols, self._coefficients(theta)):
             out[:, state, :] += coef * grad[:, col, :n]
         return out
 
@@ -526,7 +563,28 @@ class ParametricModel:
                     np.asarray(self.base(x, t, u, hi))
                     - np.asarray(self.base(x, t, u, lo))
                 ) / (2.0 * step[j])
-        if self.slots:
+        if self.used:
             phi = self._phi(x, u)
-            out[:, self._rows, n_p + np.arange(len(self.slots))] = phi[:, self._cols]
+            out[:, self._rows, n_p + np.asarray(self._smooth)] = phi[:, self._cols]
         return out
+
+
+class _Both:
+    """Two splits one after the other (each exact; they act on different terms)."""
+
+    def __init__(self, first, second):
+        self.first, self.second = first, second
+
+    def __call__(self, X, D, h):
+        X, D = self.first(X, D, h)
+        return self.second(X, D, h)
+
+
+class _ColumnOf:
+    """``position -> first + position`` (a class: what holds it pickles)."""
+
+    def __init__(self, first):
+        self.first = first
+
+    def __call__(self, position):
+        return self.first + position

@@ -229,10 +229,7 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
 
     def states_at(q):
         x0, th = q[:n], q[n:]
-
-        def rhs(x, s, u):
-            return model(x, s, u, th)
-
+        rhs = _RatesAt(model, th)
         with np.errstate(all="ignore"):
             sim = simulate_guided(rhs, x0, t, inputs, engine.n_substeps, guess)
         return sim.x[0]
@@ -354,3 +351,15 @@ def _join(items) -> str:
     if len(items) == 1:
         return items[0]
     return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+class _RatesAt:
+    """A parametric model's right-hand side at ``theta`` (with the exact
+    split of its overflow terms, which the integrators read as ``split``)."""
+
+    def __init__(self, model, theta):
+        self.model, self.theta = model, theta
+        self.split = model.split_at(theta)
+
+    def __call__(self, x, s, u):
+        return self.model(x, s, u, self.theta)

@@ -48,6 +48,11 @@ class LibraryColumns:
         out[:, where] = values
         return out
 
+    def overflow_columns(self) -> dict:
+        """``{column: (variable, level)}`` of the overflow columns."""
+        own = getattr(self.features, "overflow_columns", None)
+        return dict(own()) if callable(own) else {}
+
     def gradient(self, z, columns):
         lib, where = self._split(columns)
         out = np.zeros((len(z), len(columns), z.shape[1]))

@@ -295,6 +295,7 @@ def _cause(res) -> list:
             "(coef (fit): fitted to the measurements; 'of corr.' / 'of dx/dt': RMS "
             "size of the term over that of the correction / of the equation.)"
         )
+    out += wall_lines(res)
     if res.pruned_terms:
         out.append(
             "Proposed or tried but not kept (alpha = "
@@ -310,6 +311,27 @@ def _cause(res) -> list:
         out += ["", "Stepwise regression of d(t) (ANOVA per error state):"]
         out.append(str(text).rstrip())
     return out + [""]
+
+
+def wall_lines(res) -> list:
+    """``Wall: h1 stays at or below 14 ...`` per overflow term that ended
+    on its wall limit (:attr:`Discovery.walls`)."""
+    out = []
+    for w in res.walls:
+        routed = "; ".join(
+            f"{sig(100 * f, 3)} % of the excess flows into {state} ({w['term']} "
+            f"in {state}')"
+            for state, f in w["routes"].items()
+        )
+        out.append(
+            f"Wall: {w['state']} stays at or below {sig(w['level'])} ({w['term']} "
+            f"in {w['state']}' is on its limit {sig(w['coefficient'])}, 50 over "
+            "the sample interval: the excess goes within one sample, so the data "
+            "say it is a wall, not how stiff)"
+            + (f"; {routed}" if routed else "; the excess leaves the system")
+            + "."
+        )
+    return out
 
 
 def optimizer_summary(res):

@@ -235,6 +235,40 @@ class Discovery:
         return (self.extended_fit or self.assumed.fit).offsets
 
     @property
+    def walls(self) -> list:
+        """The overflow terms that ended as walls (see
+        :mod:`~pysindy_mme.solver.output_error`): one dict per wall, with the
+        ``state`` held below ``level``, the wall's ``coefficient`` (on its
+        limit ``-50 / dt``: the data say only that the excess goes within a
+        sample interval) and ``routes``, ``{state: fraction}`` of the excess
+        each other equation's term of the same column takes (its
+        coefficient over the wall's magnitude)."""
+        fit = self.extended_fit
+        if fit is None or not np.any(fit.at_wall):
+            return []
+        columns = self.proposals.evaluate.overflow_columns()
+        a = fit.n_physical
+        out = []
+        for k in np.flatnonzero(fit.at_wall):
+            i, c = fit.slots[k]
+            coef = float(fit.theta[a + k])
+            routes = {
+                self.state_names[j]: float(fit.theta[a + m]) / abs(coef)
+                for m, (j, cc) in enumerate(fit.slots)
+                if cc == c and j != i
+            }
+            out.append(
+                dict(
+                    state=self.state_names[i],
+                    term=self.proposals.name(c),
+                    level=float(columns[c][1]),
+                    coefficient=coef,
+                    routes=routes,
+                )
+            )
+        return out
+
+    @property
     def candidate_terms(self) -> dict:
         return self.proposals.candidate_terms(self.state_names)
 

@@ -25,6 +25,7 @@ from sklearn.base import clone
 from ..core.integrate import simulate_guided
 from ..core.jacobian import rowwise_jacobian
 from ..core.model import ParametricModel
+from ..core.relaxation import Overflows, overflow_columns_of
 from ..core.tables import sig
 from ..exceptions import DivergenceError, UnobservableError
 from ..protocols import ValidationContext
@@ -131,9 +132,17 @@ def rk4_substeps(study, rhs_rows, x, t) -> int:
 
 def rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
     """RK4 steps per interval for the assumed model at ``physical`` plus the
-    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`)."""
+    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`).
+    Overflow terms of states are left out: the fits and runs solve them
+    exactly around each RK4 step (:mod:`~pysindy_mme.core.relaxation`),
+    so their stiffness asks for no step."""
     u = study.u
     model = study.model_at(physical)
+    split = Overflows(
+        slots, proposals.evaluate.overflow_columns(), study.n_states
+    ).positions
+    coefs = [c for k, c in enumerate(coefs) if k not in split]
+    slots = [s for k, s in enumerate(slots) if k not in split]
     columns = [c for _, c in slots]
 
     def rhs_rows(x, stride):
@@ -767,7 +776,17 @@ def _half_width_refit(engine, fit, library):
     if widths is None:
         return None
     widths = np.asarray(widths, dtype=float)
-    columns = sorted({c for _, c in fit.slots if c < widths.size and widths[c] > 0})
+    # overflow terms of states are solved exactly, unsmoothed (core.relaxation)
+    split = Overflows(
+        fit.slots, overflow_columns_of(engine.features), engine.n_states
+    ).positions
+    columns = sorted(
+        {
+            c
+            for k, (_, c) in enumerate(fit.slots)
+            if k not in split and c < widths.size and widths[c] > 0
+        }
+    )
     if not columns:
         return None
     saved = widths.copy()

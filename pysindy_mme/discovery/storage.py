@@ -158,6 +158,7 @@ FIT_FIELDS = (
     "n_physical",
     "n_offsets",
     "at_bound",
+    "at_wall",
     "joined",
 )
 

@@ -401,7 +401,8 @@ def _undetermined(fit, names) -> list:
     cov = np.asarray(fit.covariance[:k, :k], float)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     held = np.zeros(k, dtype=bool)  # at a bound: a limit, named as such
-    held[: min(k, fit.at_bound.size)] = fit.at_bound[:k]
+    flags = np.asarray(fit.held, dtype=bool)[:k]  # a bound, a wall limit
+    held[: flags.size] = flags
     determined = np.isfinite(se) & (se > 0)
     out = []
     for j in np.flatnonzero(~held):

@@ -68,6 +68,17 @@ Overflow
 
         PhysicsLibrary([Overflow("h1", 10)], names=["h1", "h2", "q_in"])
 
+    When ``h1`` is a state, the column in ``h1``'s own equation is a
+    relaxation of the excess above the level, and in another state's
+    equation it routes that excess there (a tank spilling into the one
+    below: ``over(h1, 10)`` in ``h2'`` with a positive coefficient). Every
+    integrator of the package solves these terms exactly around each RK4
+    step (:mod:`~pysindy_mme.core.relaxation`), so a coefficient of any size
+    is stable: a rim the level cannot pass is the limit of a large negative
+    coefficient, which the study's fits bound at ``-50 / dt`` (``dt`` the
+    sample interval: the excess is gone within a sample, a clamp as far as
+    the data can tell) and report as a wall.
+
 Offset
     A constant force (gravity along an incline, a sensor's bias) is no effect
     class: ``PhysicsLibrary(..., include_bias=True)`` adds the column ``1``.

@@ -38,7 +38,7 @@ from pysindy.utils import AxesArray, comprehend_axes
 from scipy import sparse
 from sklearn.utils.validation import check_is_fitted
 
-from .effects import Effect
+from .effects import Effect, Overflow
 
 __all__ = ["PhysicsLibrary"]
 
@@ -406,6 +406,23 @@ class PhysicsLibrary(BaseFeatureLibrary):
             if effect is not None:
                 out[:, j] = effect.switching(z[:, var], k)
         return out
+
+    def overflow_columns(self) -> dict:
+        """``{column: (variable, level)}`` of the :class:`Overflow` columns.
+
+        An integrator solves these exactly where the variable is a state
+        (:mod:`~pysindy_mme.core.relaxation`): a wall that keeps a tank
+        below its rim is the limit of ever larger coefficients, which RK4 on
+        the whole right-hand side cannot follow.
+        """
+        columns = self.__dict__.get("_columns")
+        if columns is None:
+            check_is_fitted(self)
+        return {
+            j: (int(var), float(effect.levels[k]))
+            for j, (effect, k, var) in enumerate(columns)
+            if isinstance(effect, Overflow) and var is not None
+        }
 
     # -------------------------------------------------------- smoothness
     @property

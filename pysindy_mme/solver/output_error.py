@@ -40,6 +40,16 @@ iterate leaves the box. A parameter that ends on a bound the data push it
 against is ``at_bound``: it is not free there, so the statistics (its
 standard error NaN, the others' covariance, the score tests) are those of
 the model with it held at the bound.
+
+Walls: an overflow term in its own state's equation (``over(h1, L)`` in
+``h1'``, solved exactly: :mod:`~pysindy_mme.core.relaxation`) with a
+negative coefficient ``a`` is a wall above ``L``. A tank that cannot rise
+above its rim is the limit ``a -> -inf``, which a fit walks towards without
+end; the coefficient is bounded at ``a >= -WALL_DECAY / dt`` (the excess
+decays by ``exp(-WALL_DECAY)`` within one sample interval ``dt``: a clamp,
+as far as any data sampled at ``dt`` can tell). A coefficient that ends
+there is ``at_wall``: held, like a parameter on its bound, and the
+coefficients of the terms routing the excess elsewhere are fractions of it.
 """
 
 from __future__ import annotations
@@ -51,6 +61,7 @@ from scipy import stats
 
 from ..core.integrate import InputSignal
 from ..core.model import ParametricModel
+from ..core.relaxation import Overflows, overflow_columns_of
 from ..exceptions import DivergenceError
 from .kkt import equilibrated_inverse, solve_reduced, undetermined
 from .statistics import residual_inflation
@@ -61,6 +72,9 @@ __all__ = ["OutputErrorFit", "OutputErrorModel"]
 # Candidate sensitivities per banded solve: n_samples * n_states * group <=
 # this (a solve's right-hand sides, their copy and solution are several times
 # the sensitivities).
+#: an overflow coefficient in its own state's equation is bounded at
+#: ``-WALL_DECAY / dt``: the excess then decays by exp(-50) in a sample interval
+WALL_DECAY = 50.0
 _SCORE_ELEMENTS = 1 << 22
 # Candidate sensitivities per pass of the variational equations (one flow with
 # Jacobians, the cost of a linearisation, whatever the group): 128 MB of
@@ -98,6 +112,10 @@ class OutputErrorFit:
     rank_deficient : bool
         Some combination of parameters is not determined by the data.
     n_iter : int
+    at_wall : ndarray of bool (n_slots,)
+        The term is an overflow in its own state's equation whose
+        coefficient ended on the wall limit (see the module docstring): held
+        there, not counted as free, its standard error NaN.
     at_bound : ndarray of bool (n_physical,)
         The physical parameter ended on one of its bounds (within a relative
         1e-12; the solver leaves a parameter there only while the data push
@@ -127,16 +145,20 @@ class OutputErrorFit:
     _inflation: float | None = None
     at_bound: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     joined: bool = True
+    at_wall: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def __post_init__(self):
         if self.at_bound.size != self.n_physical:
             self.at_bound = np.zeros(self.n_physical, dtype=bool)
+        if self.at_wall.size != len(self.slots):
+            self.at_wall = np.zeros(len(self.slots), dtype=bool)
 
     @property
     def held(self) -> np.ndarray:
-        """Entries of ``theta`` held on a bound (``at_bound``, padded)."""
+        """Entries of ``theta`` held on a bound (``at_bound``, ``at_wall``)."""
         out = np.zeros(self.theta.size, dtype=bool)
         out[: self.n_physical] = self.at_bound
+        out[self.n_physical : self.n_physical + len(self.slots)] = self.at_wall
         return out
 
     def _covariances(self):
@@ -240,6 +262,18 @@ class OutputErrorFit:
         return self.cost / inflation + len(self.slots) * np.log(n_eff)
 
 
+class _HeldAt:
+    """A parametric model at fixed ``theta`` as a base model with no
+    parameters; its overflow terms keep their exact split."""
+
+    def __init__(self, model, theta):
+        self.model, self.theta = model, theta
+        self.split = model.split_at(theta)
+
+    def __call__(self, x, t, u, p):
+        return self.model(x, t, u, self.theta)
+
+
 class OutputErrorModel:
     """Output-error fits of one record for any set of correction terms.
 
@@ -341,19 +375,45 @@ class OutputErrorModel:
             tol=tol,
             theta_init=theta0,
             measurement_offsets=offsets,
-            theta_bounds=self._theta_bounds(model.n_params),
+            theta_bounds=self._theta_bounds(model.n_params, slots),
             starts=self.starts,
             # the internal units of the states the data do not measure come
             # from the starting trajectory (and the model at theta0)
             x_init=x_start,
         )
 
-    def _theta_bounds(self, p):
-        """Bounds on all of ``theta`` (p, 2): the physical ones, then none."""
-        if self.bounds is None:
+    def _theta_bounds(self, p, slots=()):
+        """Bounds on all of ``theta`` (p, 2): the physical ones, the walls'
+        limits, none for the rest (None when nothing is bounded)."""
+        walls = self.wall_positions(slots)
+        if self.bounds is None and not walls:
             return None
         out = np.tile([-np.inf, np.inf], (p, 1))
-        out[: self.n_physical] = self.bounds
+        if self.bounds is not None:
+            out[: self.n_physical] = self.bounds
+        for k in walls:
+            out[self.n_physical + k, 0] = -self.wall_limit
+        return out
+
+    @property
+    def wall_limit(self) -> float:
+        """The largest wall coefficient magnitude: ``WALL_DECAY / dt``."""
+        steps = np.diff(self.t)
+        steps = steps[steps > 0]
+        return WALL_DECAY / float(np.max(steps)) if steps.size else np.inf
+
+    def wall_positions(self, slots) -> list:
+        """Positions in ``slots`` of overflow terms in their own state's equation."""
+        over = Overflows(slots, overflow_columns_of(self.features), self.n_states)
+        return [item.rate for item in over.items if item.rate is not None]
+
+    def _at_wall(self, theta, slots) -> np.ndarray:
+        """Which terms of ``slots`` sit on the wall limit (rel. 1e-12)."""
+        out = np.zeros(len(slots), dtype=bool)
+        limit = self.wall_limit
+        for k in self.wall_positions(slots):
+            value = theta[self.n_physical + k]
+            out[k] = abs(value + limit) <= 1e-12 * limit
         return out
 
     def _at_bound(self, theta):
@@ -380,11 +440,9 @@ class OutputErrorModel:
         """
         slots = tuple((int(i), int(c)) for i, c in slots)
         theta0 = np.asarray(theta0, dtype=float)
-        if self.bounds is not None:
-            theta0 = theta0.copy()
-            theta0[: self.n_physical] = np.clip(
-                theta0[: self.n_physical], self.bounds[:, 0], self.bounds[:, 1]
-            )
+        bounds = self._theta_bounds(theta0.size, slots)
+        if bounds is not None:
+            theta0 = np.clip(theta0, bounds[:, 0], bounds[:, 1])
         solver = self._solver(slots, theta0, max_iter, tol, x_start)
         return self._run(slots, solver, solver.start_from(x_start, theta0), theta0)
 
@@ -439,6 +497,7 @@ class OutputErrorModel:
                 "(the line search stepped back)"
             )
         at_bound = self._at_bound(res.theta)
+        at_wall = self._at_wall(res.theta, slots)
         fit = OutputErrorFit(
             slots=slots,
             theta=res.theta,
@@ -447,7 +506,8 @@ class OutputErrorModel:
             n_residuals=self.n_residuals,
             n_free=self.n_states * self.n_records
             + res.theta.size
-            - int(at_bound.sum()),
+            - int(at_bound.sum())
+            - int(at_wall.sum()),
             converged=converged,
             message=message,
             rank_deficient=res.rank_deficient,
@@ -458,6 +518,7 @@ class OutputErrorModel:
             _engine=self,
             at_bound=at_bound,
             joined=bool(bounded),
+            at_wall=at_wall,
         )
         return fit
 
@@ -477,11 +538,8 @@ class OutputErrorModel:
             n_extra=self.n_offsets,
         )
 
-        def base(x, t, u, p):
-            return model(x, t, u, theta)
-
         held = OutputErrorModel(
-            base,
+            _HeldAt(model, theta),
             self.n_states,
             self.features,
             self.y,

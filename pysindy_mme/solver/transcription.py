@@ -516,6 +516,9 @@ class MMESmoother(GaussNewton):
         B = np.empty((K, n, p)) if jacobian else None
         X = np.empty((K, n, n_extra)) if n_extra else None
         f = self._f
+        # overflow terms, solved exactly around each RK4 step; theta's first
+        # entry is column n + q of the flow's derivatives
+        split = f.split_at(theta, n + q)
         for lo in range(0, K, self._CHUNK):
             sl = slice(lo, min(lo + self._CHUNK, K))
             Ed = d[sl] @ self._E.T
@@ -546,6 +549,7 @@ class MMESmoother(GaussNewton):
                 else None,
                 jac_p=jac_p,
                 n_params=q + p + n_extra,
+                split=split,
             )
             phi[sl] = out.phi
             if jacobian:

@@ -268,8 +268,28 @@ class Dynamics:
             return base + self._to_internal(exact)
         return rowwise_jacobian(lambda zz: self(zz, t, u, theta), z, scale=1.0)
 
+    def split_at(self, theta, first_column=None):
+        """The model's overflow terms at ``theta`` as ``split(Z, D, h)`` in
+        internal units (see :meth:`ParametricModel.split_at`), or None."""
+        own = getattr(self.model, "split_at", None)
+        inner = own(theta, first_column) if callable(own) else None
+        return None if inner is None else _InternalSplit(inner, self.unit)
+
     def param_jacobian(self, z, t, u, theta):
         if not self.p:
             return np.zeros((z.shape[0], self.n, 0))
         dfdp = self.model.param_jacobian(self._user(z), t, u, theta)
         return dfdp / self.unit[None, :, None]
+
+
+class _InternalSplit:
+    """A split ``(X, D, h)`` in user units, applied to internal units: the
+    rows of ``Z`` and ``D`` are scaled by the state units and back."""
+
+    def __init__(self, inner, unit):
+        self.inner, self.unit = inner, unit
+
+    def __call__(self, Z, D, h):
+        s = self.unit
+        X, DX = self.inner(Z * s, None if D is None else D * s[None, :, None], h)
+        return X / s, (None if DX is None else DX / s[None, :, None])
