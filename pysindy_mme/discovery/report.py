@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.tables import p_value, sig, signed, text_table
+from ..solver.output_error import WALL_DECAY
 
 __all__ = ["format_discovery"]
 
@@ -325,9 +326,9 @@ def wall_lines(res) -> list:
         )
         out.append(
             f"Wall: {w['state']} stays at or below {sig(w['level'])} ({w['term']} "
-            f"in {w['state']}' is on its limit {sig(w['coefficient'])}, 50 over "
-            "the sample interval: the excess goes within one sample, so the data "
-            "say it is a wall, not how stiff)"
+            f"in {w['state']}' is on its limit {sig(w['coefficient'])}, "
+            f"{WALL_DECAY:g} over the sample interval: the excess goes within a "
+            "fraction of a sample, so the data say it is a wall, not how stiff)"
             + (f"; {routed}" if routed else "; the excess leaves the system")
             + "."
         )

@@ -236,13 +236,13 @@ class Discovery:
 
     @property
     def walls(self) -> list:
-        """The overflow terms that ended as walls (see
-        :mod:`~pysindy_mme.solver.output_error`): one dict per wall, with the
+        """The overflow terms that ended as walls: one dict per wall, with the
         ``state`` held below ``level``, the wall's ``coefficient`` (on its
-        limit ``-50 / dt``: the data say only that the excess goes within a
-        sample interval) and ``routes``, ``{state: fraction}`` of the excess
-        each other equation's term of the same column takes (its
-        coefficient over the wall's magnitude)."""
+        limit ``-WALL_DECAY / dt``, see :mod:`~pysindy_mme.solver.output_error`:
+        the data say only that the excess goes within a fraction of a
+        sample) and ``routes``, ``{state: fraction}`` of the excess each
+        other equation's term of the same column takes (its coefficient over
+        the wall's magnitude)."""
         fit = self.extended_fit
         if fit is None or not np.any(fit.at_wall):
             return []

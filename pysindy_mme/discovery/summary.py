@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.tables import SimpleTable, Summary, p_value, sig
+from .report import wall_lines
 
 __all__ = ["discovery_summary", "records", "columns", "TABLES"]
 
@@ -181,6 +182,7 @@ def discovery_summary(res) -> Summary:
         f"({name})' = {eq}"
         for name, eq in zip(res.state_names, res.extended_model.equations())
     ]
+    notes += wall_lines(res)
     notes += [f"Warning: {w}" for w in res.warnings]
     return Summary("pysindy-mme discovery", tables, notes)
 

@@ -75,9 +75,9 @@ Overflow
     integrator of the package solves these terms exactly around each RK4
     step (:mod:`~pysindy_mme.core.relaxation`), so a coefficient of any size
     is stable: a rim the level cannot pass is the limit of a large negative
-    coefficient, which the study's fits bound at ``-50 / dt`` (``dt`` the
-    sample interval: the excess is gone within a sample, a clamp as far as
-    the data can tell) and report as a wall.
+    coefficient, which the study's fits bound at ``-10 / dt`` (``dt`` the
+    sample interval: the excess relaxes with a time constant of a tenth of
+    a sample, a clamp as far as the data can tell) and report as a wall.
 
 Offset
     A constant force (gravity along an incline, a sensor's bias) is no effect

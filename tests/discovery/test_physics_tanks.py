@@ -63,6 +63,7 @@ from tanks_case import tanks_arguments
 from pysindy_mme import PhysicsLibrary, discover
 from pysindy_mme.feature_library import Overflow, Torricelli
 from pysindy_mme.machines import cascaded_tanks
+from pysindy_mme.solver.output_error import WALL_DECAY
 
 MACHINE = cascaded_tanks(assumed="linear")
 RIMS = [6.0, 8.0, 10.0, 12.0, 14.0]  # candidate overflow levels of h1 (V)
@@ -139,30 +140,19 @@ def _describe(res) -> str:
     return f"terms {res.terms}; {res.conclusion}; {res.reasons}"
 
 
-# Not met yet (issue 19, case 1b), measured on seeds 0..9 with the criteria
-# fixed before the runs (benchmarks/bench_physics.py --only tanks): the law
-# 10/10, saturation named 10/10, test RMSE within 1.5x the true model's 2/10
-# (seeds 1 and 6, 1.34x and 1.01x: the law and the overflow over(h1, 14) as
-# a wall); held out (--held-out, seeds 100..109, looked at only to report
-# them): 10/10, 10/10, 6/10. 12..129 s per study; every conclusion
-# "inconclusive".
-# Session 12: the regression of d(t) is given the grey-box parameters'
-# sensitivities (FloatingFStepwise partial_out), which ended the look-alike
-# proposals (over(h1, 6) with a positive sign beside -a1 h1), and the search
-# returns to a visited model that beats where it ended (seed 5 had ended on
-# a wall alone): law 6 -> 10 and held out 5 -> 10; RMSE 4 -> 2 and held out
-# 5 -> 6. What is left is the overflow: the fit with the h2' half of the
-# flow walks off to a wall and its trajectory does not join (seeds 2, 9,
-# 101), or the search keeps ramps and constants beside the law (seeds 0, 3,
-# 104). A wall's rate is no number of the data: an overflow is a clamp with
-# a destination, which no library column is.
-# Strict: a pass is news.
-TANKS_NOT_MET = pytest.mark.xfail(
-    strict=True,
-    reason="linear-model tanks: law 10/10, saturation 10/10, RMSE 2/10 (held out "
-    "10, 10, 6); the overflow (a clamp with a destination) not solved yet (issue 19, "
-    "case 1b)",
-)
+# Met since session 13 (benchmarks/bench_physics.py --only tanks, criteria
+# fixed before the runs): the law 9/10, saturation named 10/10, test RMSE
+# within 1.5x the true model's 9/10 (seed 0 misses both, 3.4x: see
+# test_tanks_seed0); seeds 1-9 all end on the true structure, the wall
+# over(h1, 14) with 71-74 % of the excess routed into h2. Held out (seeds
+# 100..109, --held-out): 10/10, 10/10, 9/10 (seed 102, 2.1x: a soft wall at
+# level 12). Before: 10/10, 10/10, 2/10 (held out 10, 10, 6). What changed:
+# overflow terms of states are solved exactly around each RK4 step
+# (core/relaxation.py), so a wall of any stiffness joins its trajectory; a
+# wall's coefficient is bounded at -WALL_DECAY/dt (a clamp as far as the
+# data can tell: held there, at_wall); the search tries each wall from the
+# clamp as well as from where it was, and moves an overflow's level in
+# every equation at once.
 
 
 @pytest.fixture(scope="module")
@@ -185,16 +175,21 @@ def test_report_names_the_clipping_seed0(seed0):
 
 
 @pytest.mark.slow  # a whole study: keeps the edit loop under 2 minutes
-@TANKS_NOT_MET
+@pytest.mark.xfail(
+    strict=True,
+    reason="seed 0 is the dev seed the study gets wrong since session 13: the "
+    "regression's first proposal in h1' is over(h1, 6) (a look-alike of the "
+    "square-root outflow), after which sqrt(h1+) does not join and constants "
+    "and ramps take its place (3.4x the true model's test RMSE); seeds 1-9 meet "
+    "all three requirements",
+)
 def test_tanks_seed0(seed0):
-    res, test, sec = seed0
+    res, test, _ = seed0
     failures = tanks_failures(res, test)
     assert failures == {}, f"{failures}; {_describe(res)}"
-    assert sec < 20.0, f"the study took {sec:.1f} s"
 
 
 @pytest.mark.slow
-@TANKS_NOT_MET
 def test_tanks_over_ten_seeds():
     failed = {"law": [], "saturation": [], "rmse": []}
     details = {}
@@ -213,21 +208,25 @@ def test_tanks_over_ten_seeds():
     assert all(n >= NEEDED for n in counts.values()), details
 
 
-@pytest.mark.slow  # one study, 20-70 s
+@pytest.mark.slow  # one study, 10-30 s
 def test_overflow_kept_as_a_wall_seed6():
-    """Seed 6 meets all three requirements: the law, and the overflow out of
-    h1' and into h2' as one flow (a wall, whose rate the smoothing sets and
-    the report says so), predicting the test record as well as the true
-    model does. (Seed 3 did until the regression was given the parameters;
-    it now keeps constants beside the law and misses the wall.)"""
+    """Seed 6: the law, and the overflow out of h1' and into h2' as a wall
+    (its coefficient on the wall limit -WALL_DECAY/dt, held: the data say only that
+    the excess is gone within a sample) with the route taking the machine's
+    share of the excess, predicting the test record as well as the true
+    model does; the report names the wall and the share."""
     res, test, _ = tanks_study(6)
     assert tanks_failures(res, test) == {}, _describe(res)
     out = res.terms["h1"]["over(h1, 14)"]
     into = res.terms["h2"]["over(h1, 14)"]
-    # the split is the hidden level's scale: b is held at its guess 0.05, the
+    assert out == pytest.approx(-WALL_DECAY / 4.0)  # the wall limit at 0.25 Hz
+    # the share is the hidden level's scale: b is held at its guess 0.05, the
     # truth is kp = 0.036, so h1 is in units 0.05 / 0.036 = 1.39 times the
     # lower tank's, and the water h1 loses arrives in h2 divided by that
-    assert out < 0 < into
-    assert abs(-out / into - 0.05 / 0.036) < 0.05 * 0.05 / 0.036
-    assert any("kept as one flow between states" in n for n in res.warnings)
-    assert "lower bounds, not estimates" in str(res)
+    (wall,) = res.walls
+    assert wall["state"] == "h1" and wall["level"] == 14.0
+    assert wall["routes"]["h2"] == pytest.approx(0.036 / 0.05, rel=0.05)
+    assert into == pytest.approx(-out * wall["routes"]["h2"])
+    text = str(res)
+    assert "Wall: h1 stays at or below 14" in text
+    assert "of the excess flows into h2" in text

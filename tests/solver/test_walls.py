@@ -1,4 +1,4 @@
-"""Walls: an overflow term in its own state's equation, bounded at -50/dt.
+"""Walls: an overflow term in its own state's equation, bounded at -WALL_DECAY/dt.
 
 The cascaded tanks' truth (machines.py) clamps the upper tank at its rim and
 routes the excess into the lower tank. With the square-root model's own
