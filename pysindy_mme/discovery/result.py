@@ -246,7 +246,9 @@ class Discovery:
         fit = self.extended_fit
         if fit is None or not np.any(fit.at_wall):
             return []
-        columns = self.proposals.evaluate.overflow_columns()
+        # the library's own declaration (a loaded result keeps it: StoredLibrary)
+        own = getattr(self.proposals.library, "overflow_columns", None)
+        columns = own() if callable(own) else {}
         a = fit.n_physical
         out = []
         for k in np.flatnonzero(fit.at_wall):
@@ -261,7 +263,7 @@ class Discovery:
                 dict(
                     state=self.state_names[i],
                     term=self.proposals.name(c),
-                    level=float(columns[c][1]),
+                    level=float(columns[c][1]) if c in columns else float("nan"),
                     coefficient=coef,
                     routes=routes,
                 )

@@ -317,10 +317,16 @@ def _library_dict(res) -> dict:
         from ..core.extended import _KINKED_NAME
 
         kinked = [i for i, n in enumerate(names) if _KINKED_NAME.search(n)]
+    overflow = getattr(res.proposals.library, "overflow_columns", None)
     return {
         "class": type(model.feature_library).__name__,
         "feature_names": names,
         "kinked_columns": kinked,
+        # {column: [variable, level]}: a loaded result still names its walls
+        "overflow_columns": {
+            str(c): [int(v), float(level)]
+            for c, (v, level) in (overflow() if callable(overflow) else {}).items()
+        },
     }
 
 
@@ -547,6 +553,10 @@ class StoredLibrary(_Stored):
         self.class_name = values["class"]
         self.feature_names = list(values["feature_names"])
         self.kinked = {int(i) for i in values["kinked_columns"]}
+        self.overflow = {
+            int(c): (int(v), float(level))
+            for c, (v, level) in values.get("overflow_columns", {}).items()
+        }
         self.variables = list(variables)
         self.needed = [int(i) for i in needed]
 
@@ -555,6 +565,10 @@ class StoredLibrary(_Stored):
 
     def kinked_columns(self, columns):
         return [c for c in columns if int(c) in self.kinked]
+
+    def overflow_columns(self) -> dict:
+        """``{column: (variable, level)}`` as the library declared them."""
+        return dict(self.overflow)
 
     def transform(self, z):
         from ..core.features import _parse, _power

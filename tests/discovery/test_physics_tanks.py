@@ -60,7 +60,7 @@ import numpy as np
 import pytest
 from tanks_case import tanks_arguments
 
-from pysindy_mme import PhysicsLibrary, discover
+from pysindy_mme import Discovery, PhysicsLibrary, discover
 from pysindy_mme.feature_library import Overflow, Torricelli
 from pysindy_mme.machines import cascaded_tanks
 from pysindy_mme.solver.output_error import WALL_DECAY
@@ -209,7 +209,7 @@ def test_tanks_over_ten_seeds():
 
 
 @pytest.mark.slow  # one study, 10-30 s
-def test_overflow_kept_as_a_wall_seed6():
+def test_overflow_kept_as_a_wall_seed6(tmp_path):
     """Seed 6: the law, and the overflow out of h1' and into h2' as a wall
     (its coefficient on the wall limit -WALL_DECAY/dt, held: the data say only that
     the excess is gone within a sample) with the route taking the machine's
@@ -230,3 +230,11 @@ def test_overflow_kept_as_a_wall_seed6():
     text = str(res)
     assert "Wall: h1 stays at or below 14" in text
     assert "of the excess flows into h2" in text
+    # a saved result names its walls when loaded (the library's declaration
+    # of its overflow columns is saved with the column names)
+    res.save(tmp_path / "tanks.json")
+    back = Discovery.load(tmp_path / "tanks.json", assumed_model=MACHINE.assumed_model)
+    assert back.walls == res.walls
+    assert [w for w in str(back).splitlines() if w.startswith("Wall:")] == [
+        w for w in text.splitlines() if w.startswith("Wall:")
+    ]
