@@ -69,26 +69,81 @@ def _inputs_at(u, t, hold):
     return at
 
 
+def _overflow_terms(model, n_states):
+    """``[(variable, level, {equation: coefficient})]``: the model's overflow
+    terms of states (``over(h1, L)``), which the package solves exactly
+    around each RK4 step; ``[]`` for any other model."""
+    library = getattr(model, "feature_library", None)
+    declared = getattr(library, "overflow_columns", None)
+    coef = getattr(model, "correction_coef_", None)
+    if not callable(declared) or coef is None:
+        return []
+    out = []
+    for c, (var, level) in sorted(declared().items()):
+        if var < n_states and np.any(coef[:, c] != 0):
+            rates = {i: float(coef[i, c]) for i in np.flatnonzero(coef[:, c])}
+            out.append((c, var, level, rates))
+    return out
+
+
+def _overflow_half_step(state, terms, h):
+    """The overflow terms alone over ``h``, in closed form (written here):
+    ``e' = a e`` for the excess ``e = x_v - L > 0`` in its own equation, and
+    ``x_j' = c_j e`` in the others."""
+    state = state.copy()
+    for _, var, level, rates in terms:
+        e0 = state[0, var] - level
+        if e0 <= 0:
+            continue
+        a = rates.get(var, 0.0)
+        grow = np.exp(a * h)
+        # integral of e over the step: e0 (exp(a h) - 1) / a, e0 h when a = 0
+        area = e0 * h if abs(a * h) < 1e-12 else e0 * np.expm1(a * h) / a
+        for j, c in rates.items():
+            if j != var:
+                state[0, j] += c * area
+        state[0, var] = level + e0 * grow
+    return state
+
+
 def rk4_free_run(model, x0, t, u, hold, substeps):
-    """Classical RK4 from ``x0`` over ``t``, ``substeps`` steps per interval."""
+    """Classical RK4 from ``x0`` over ``t``, ``substeps`` steps per interval.
+
+    A model with overflow terms of states gets them solved in closed form
+    around each step (half a step before, half after: the package's Strang
+    splitting, written here again), the rest by RK4."""
     at = _inputs_at(u, t, hold)
     x = np.empty((t.size, len(x0)))
     x[0] = x0
     state = np.asarray(x0, float)[None].copy()
+    terms = _overflow_terms(model, len(x0))
+    library = getattr(model, "feature_library", None)
 
     def f(s, z, k):
-        return np.asarray(model(z, np.array([s]), at(s, k)), float)
+        uk = at(s, k)
+        out = np.asarray(model(z, np.array([s]), uk), float)
+        if terms:  # the overflow terms are not RK4's to integrate
+            zz = z if uk is None else np.hstack([z, np.reshape(uk, (1, -1))])
+            cols = library.evaluate(zz, [c for c, _, _, _ in terms])
+            for m, (_, _, _, rates) in enumerate(terms):
+                for i, c in rates.items():
+                    out[0, i] -= c * cols[0, m]
+        return out
 
     with np.errstate(all="ignore"):
         for k in range(t.size - 1):
             h = (t[k + 1] - t[k]) / substeps
             s = t[k]
             for _ in range(substeps):
+                if terms:
+                    state = _overflow_half_step(state, terms, h / 2)
                 k1 = f(s, state, k)
                 k2 = f(s + h / 2, state + h / 2 * k1, k)
                 k3 = f(s + h / 2, state + h / 2 * k2, k)
                 k4 = f(s + h, state + h * k3, k)
                 state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+                if terms:
+                    state = _overflow_half_step(state, terms, h / 2)
                 s += h
             x[k + 1] = state[0]
             if not np.all(np.isfinite(state)):

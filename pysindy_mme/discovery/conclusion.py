@@ -218,6 +218,10 @@ class Evidence:
         Exact trade-offs fixed by holding a parameter at its guess (a gauge):
         named among the reasons, but no doubt (every other quantity is
         determined relative to the gauge).
+    vanished : list of str
+        Grey-box parameters the extended fit puts at zero within a small
+        standard error (the correction does the work of that part of the
+        assumed model): a finding, named among the reasons.
     """
 
     contradicted: bool
@@ -238,6 +242,7 @@ class Evidence:
     parameter_advice: str | None = None
     noise_doubt: str | None = None
     overshoots: list = field(default_factory=list)
+    vanished: list = field(default_factory=list)
     memory: list = field(default_factory=list)
     gauges: list = field(default_factory=list)
 
@@ -253,8 +258,9 @@ def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
     found = _without_terms(ev) if not ev.terms else _with_terms(ev)
     found = _with_overshoots(_with_memory(found, ev.memory), ev.overshoots)
-    if ev.gauges:
-        found = replace(found, reasons=tuple(found.reasons) + tuple(ev.gauges))
+    extra = tuple(ev.vanished) + tuple(ev.gauges)
+    if extra:
+        found = replace(found, reasons=tuple(found.reasons) + extra)
     return found
 
 
