@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 
 from .integrate import InputSignal, simulate
 from .jacobian import rowwise_jacobian
-from .relaxation import Overflows, overflow_columns_of
+from .relaxation import Overflows, overflow_columns_of, split_form
 
 __all__ = ["ModelFunction", "as_model_function", "simulate_model"]
 
@@ -567,6 +567,30 @@ class ParametricModel:
             phi = self._phi(x, u)
             out[:, self._rows, n_p + np.asarray(self._smooth)] = phi[:, self._cols]
         return out
+
+
+class RatesAt:
+    """A parametric model at fixed ``theta`` as ``(x, t, u) -> dx/dt``, with
+    the split of its overflow terms as ``split`` (what the integrators read)."""
+
+    def __init__(self, model, theta):
+        self.model, self.theta = model, theta
+        self.split = model.split_at(theta)
+
+    def __call__(self, x, t, u=None):
+        return self.model(x, t, u, self.theta)
+
+
+class AsBase:
+    """A right-hand side ``(x, t, u)`` as a base model with no parameters,
+    ``(x, t, u, p)``, for a :class:`ParametricModel`; the split of its
+    overflow terms (:func:`~.relaxation.split_form`) is kept as ``split``."""
+
+    def __init__(self, rhs):
+        self.rhs, self.split = split_form(rhs)
+
+    def __call__(self, x, t, u, p):
+        return self.rhs(x, t, u)
 
 
 class _Both:

@@ -134,17 +134,21 @@ class Overflows:
         With ``D`` (K, n, n_cols), ``dX / d(start, parameters)``, also its
         update: ``column_of(position)`` is the column of ``D`` that holds the
         coefficient at ``position`` (None: ``D`` has no parameter columns, the
-        coefficients are fixed). Returns ``(X, D)`` (new arrays).
+        coefficients are fixed). Returns ``(X, D)``: new arrays where a state
+        is above a level, the inputs themselves where none is (most steps).
         """
-        X = np.array(X, dtype=float)
-        D = None if D is None else np.array(D, dtype=float)
         h = np.broadcast_to(np.asarray(h, dtype=float).reshape(-1), (X.shape[0],))
+        copied = False
         for item in self.items:
             v = item.variable
             e0 = X[:, v] - item.level
             on = e0 > 0.0
             if not np.any(on):
                 continue
+            if not copied:  # the caller's arrays are never written to
+                X = np.array(X, dtype=float)
+                D = None if D is None else np.array(D, dtype=float)
+                copied = True
             a = 0.0 if item.rate is None else float(coefs[item.rate])
             hh, ee = h[on], e0[on]
             E, p1, dp1 = _phi1(a * hh)

@@ -238,14 +238,14 @@ class _Search:
                 )
                 more.n_iter += fit.n_iter
                 fit = more if more.ok else fit
-        fit = self._from_the_clamp(slots, fit, start, polish)
+        fit = self._from_the_clamp(slots, fit, polish)
         self.progress(
             f"  fit {len(slots)} term(s): cost {fit.cost:.6g}, {fit.n_iter} it."
             + ("" if fit.converged else f" ({fit.message})")
         )
         return fit
 
-    def _from_the_clamp(self, slots, fit, start, polish):
+    def _from_the_clamp(self, slots, fit, polish):
         """``fit``, or the same terms fitted from the clamp if that fits better.
 
         A wall (an overflow term of a state in its own equation with a
@@ -682,9 +682,7 @@ def _level_round(search: _Search, checked) -> bool:
             f"{search.describe((var, o)).split(': ')[-1]} in every equation "
             f"(cost {cost:.6g} -> {search.fit.cost:.6g})"
         )
-        for gone in before:
-            if gone not in slots:
-                search.reject(gone, f"its level moved to {columns[o][1]:g}")
+        search.replaced(before, slots, f"its level moved to {columns[o][1]:g}")
         changed = True
     return changed
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.integrate import simulate_guided
-from ..core.model import ParametricModel
+from ..core.model import ParametricModel, RatesAt
 from ..protocols.runs import measurement_function
 
 __all__ = ["TradeOff", "exact_trade_offs", "gauge_choice"]
@@ -229,7 +229,7 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
 
     def states_at(q):
         x0, th = q[:n], q[n:]
-        rhs = _RatesAt(model, th)
+        rhs = RatesAt(model, th)
         with np.errstate(all="ignore"):
             sim = simulate_guided(rhs, x0, t, inputs, engine.n_substeps, guess)
         return sim.x[0]
@@ -351,15 +351,3 @@ def _join(items) -> str:
     if len(items) == 1:
         return items[0]
     return ", ".join(items[:-1]) + " and " + items[-1]
-
-
-class _RatesAt:
-    """A parametric model's right-hand side at ``theta`` (with the exact
-    split of its overflow terms, which the integrators read as ``split``)."""
-
-    def __init__(self, model, theta):
-        self.model, self.theta = model, theta
-        self.split = model.split_at(theta)
-
-    def __call__(self, x, s, u):
-        return self.model(x, s, u, self.theta)

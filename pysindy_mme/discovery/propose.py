@@ -17,6 +17,7 @@ from sklearn.base import clone
 
 from ..core.features import SelectedFeatures
 from ..core.libraries import fresh_library
+from ..core.relaxation import overflow_columns_of
 from ..optimizers import FloatingFStepwise
 from ..optimizers.partial import project_out
 
@@ -50,8 +51,7 @@ class LibraryColumns:
 
     def overflow_columns(self) -> dict:
         """``{column: (variable, level)}`` of the overflow columns."""
-        own = getattr(self.features, "overflow_columns", None)
-        return dict(own()) if callable(own) else {}
+        return overflow_columns_of(self.features)
 
     def gradient(self, z, columns):
         lib, where = self._split(columns)

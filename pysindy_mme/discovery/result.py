@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.relaxation import overflow_columns_of
 from ..exceptions import NotSavedError
 from .estimates import ParameterEstimate
 from .report import format_discovery
@@ -247,8 +248,7 @@ class Discovery:
         if fit is None or not np.any(fit.at_wall):
             return []
         # the library's own declaration (a loaded result keeps it: StoredLibrary)
-        own = getattr(self.proposals.library, "overflow_columns", None)
-        columns = own() if callable(own) else {}
+        columns = overflow_columns_of(self.proposals.library)
         a = fit.n_physical
         out = []
         for k in np.flatnonzero(fit.at_wall):

@@ -91,6 +91,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.relaxation import overflow_columns_of
 from ..exceptions import NotSavedError
 
 __all__ = [
@@ -317,7 +318,6 @@ def _library_dict(res) -> dict:
         from ..core.extended import _KINKED_NAME
 
         kinked = [i for i, n in enumerate(names) if _KINKED_NAME.search(n)]
-    overflow = getattr(res.proposals.library, "overflow_columns", None)
     return {
         "class": type(model.feature_library).__name__,
         "feature_names": names,
@@ -325,7 +325,7 @@ def _library_dict(res) -> dict:
         # {column: [variable, level]}: a loaded result still names its walls
         "overflow_columns": {
             str(c): [int(v), float(level)]
-            for c, (v, level) in (overflow() if callable(overflow) else {}).items()
+            for c, (v, level) in overflow_columns_of(res.proposals.library).items()
         },
     }
 

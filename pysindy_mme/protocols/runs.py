@@ -17,7 +17,7 @@ import numpy as np
 from sklearn.base import clone
 
 from ..core.integrate import InputSignal, simulate_guided
-from ..core.relaxation import split_form
+from ..core.model import AsBase
 from ..exceptions import DivergenceError, UnobservableError
 from ..solver.output_error import OutputErrorModel
 
@@ -196,23 +196,12 @@ def record_guess(study, record):
     return np.asarray(estimate.smoothed_x_)
 
 
-class _FixedBase:
-    """``model_rhs`` as a base model with no parameters, its overflow terms'
-    split (``model_rhs.split``) kept."""
-
-    def __init__(self, model_rhs):
-        self.model_rhs, self.split = split_form(model_rhs)
-
-    def __call__(self, x, t, u, p):
-        return self.model_rhs(x, t, u)
-
-
 def window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
     """``(x0, offsets)`` of ``model_rhs`` fitted to the window ``y`` (an
     output-error fit of the initial state and, with ``study.offsets``, the
     measurement offsets; nothing else)."""
 
-    base = _FixedBase(model_rhs)
+    base = AsBase(model_rhs)
 
     m_off = y.shape[1] if study.offsets else 0
     fit = OutputErrorModel(

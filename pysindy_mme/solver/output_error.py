@@ -60,7 +60,7 @@ import numpy as np
 from scipy import stats
 
 from ..core.integrate import InputSignal
-from ..core.model import ParametricModel
+from ..core.model import AsBase, ParametricModel, RatesAt
 from ..core.relaxation import Overflows, overflow_columns_of
 from ..exceptions import DivergenceError
 from .kkt import equilibrated_inverse, solve_reduced, undetermined
@@ -265,18 +265,6 @@ class OutputErrorFit:
         inflation = self.inflation if inflation is None else inflation
         n_eff = max(self.n_residuals / inflation, 2.0)
         return self.cost / inflation + len(self.slots) * np.log(n_eff)
-
-
-class _HeldAt:
-    """A parametric model at fixed ``theta`` as a base model with no
-    parameters; its overflow terms keep their exact split."""
-
-    def __init__(self, model, theta):
-        self.model, self.theta = model, theta
-        self.split = model.split_at(theta)
-
-    def __call__(self, x, t, u, p):
-        return self.model(x, t, u, self.theta)
 
 
 class OutputErrorModel:
@@ -544,7 +532,7 @@ class OutputErrorModel:
         )
 
         held = OutputErrorModel(
-            _HeldAt(model, theta),
+            AsBase(RatesAt(model, theta)),
             self.n_states,
             self.features,
             self.y,
