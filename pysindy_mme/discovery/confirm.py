@@ -732,11 +732,10 @@ def _merge_round(search: _Search, z) -> bool:
     return False
 
 
-def _forward_step(search: _Search) -> bool:
-    """Score every library candidate; add the best if it is significant."""
-    pool = [c for c in search.pool if c not in search.slots and c not in search.tried]
-    if not pool:
-        return False
+def best_score(search: _Search, pool) -> tuple:
+    """The library candidate of ``pool`` the score test ranks first against
+    the current fit: ``(index, p, share of the misfit, its Gauss-Newton step,
+    whether it would enter)`` (one pass over the record for all of them)."""
     f_vals, steps = search.engine.scores(search.fit, pool)
     best = int(np.argmax(f_vals))
     p_best = float(stats.f.sf(f_vals[best], 1, max(search.fit.dof - 1, 1)))
@@ -744,12 +743,22 @@ def _forward_step(search: _Search) -> bool:
     raw = max(search.fit.n_residuals - search.fit.n_free - 1, 1)
     share = f_vals[best] * search.fit.inflation / raw
     share = share / (1.0 + share)
-    if p_best > search.alpha_term or share < search.min_effect:
+    enters = p_best <= search.alpha_term and share >= search.min_effect
+    return best, p_best, share, steps[best], bool(enters)
+
+
+def _forward_step(search: _Search) -> bool:
+    """Score every library candidate; add the best if it is significant."""
+    pool = [c for c in search.pool if c not in search.slots and c not in search.tried]
+    if not pool:
+        return False
+    best, _, _, step, enters = best_score(search, pool)
+    if not enters:
         return False
     slot = pool[best]
     search.tried.add(slot)
     trial = search.refit(
-        search.slots + [slot], [*search.fit.coefficients, steps[best]], search.fit
+        search.slots + [slot], [*search.fit.coefficients, step], search.fit
     )
     if not (trial.ok and search.improves(search.fit, trial)[2]):
         trial = search.mme_trial(search.slots + [slot], trial)

@@ -31,6 +31,7 @@ from ..exceptions import DivergenceError, UnobservableError
 from ..protocols import ValidationContext
 from ..protocols.runs import FreeRun, free_run, measurement_function, pooled_runs
 from ..solver.output_error import OutputErrorFit, OutputErrorModel
+from . import long_record
 from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
 from .doubts import stop_reason
@@ -109,33 +110,51 @@ class _AssumedRates:
         return np.asarray(self.f(x, tt, u), dtype=float).reshape(x.shape)
 
 
+#: the RK4 step ``h`` at which ``h * spectral radius`` is accurate enough
+RK4_H_RHO = 0.5
+
+
+def spectral_radius(rhs_rows, x) -> float:
+    """The largest ``|eigenvalue|`` of the model's Jacobian along ``x``: its
+    fastest time scale is ``1 / radius``.
+
+    ``rhs_rows(z, stride)``: the model at the rows ``z``, which are every
+    ``stride``-th row of ``x`` (a sample of 200 points is enough).
+    """
+    stride = max(1, x.shape[0] // 200)
+    xs = x[::stride]
+    if not xs.size:
+        return 0.0
+    jac = rowwise_jacobian(lambda z: rhs_rows(z, stride), xs, rel_step=1e-6)
+    jac[~np.isfinite(jac)] = 0.0
+    return float(np.max(np.abs(np.linalg.eigvals(jac))))
+
+
 def rk4_substeps(study, rhs_rows, x, t) -> int:
     """RK4 steps per interval so that ``h * spectral radius <= 0.5``.
 
     The spectral radius of the model's Jacobian along the trajectory sets
     the fastest time scale; RK4 is accurate to ~1e-5 relative per step at
-    ``h rho = 0.5``. At least the estimator's own ``n_substeps``.
+    ``h rho = 0.5`` (:data:`RK4_H_RHO`). At least the estimator's own
+    ``n_substeps``.
     """
-    stride = max(1, x.shape[0] // 200)  # a sample of points is enough
-    xs = x[::stride]
-    jac = rowwise_jacobian(lambda z: rhs_rows(z, stride), xs, rel_step=1e-6)
-    jac[~np.isfinite(jac)] = 0.0
-    rho = float(np.max(np.abs(np.linalg.eigvals(jac)))) if xs.size else 0.0
+    rho = spectral_radius(rhs_rows, x)
     steps = np.diff(t)
     starts = getattr(study, "starts", ())
     if len(starts) and t.size == study.t.size:
         steps = np.delete(steps, np.asarray(starts, dtype=int) - 1)  # no breaks
     dt = float(np.max(steps))
-    auto = int(min(50, max(1, np.ceil(dt * rho / 0.5))))
+    auto = int(min(50, max(1, np.ceil(dt * rho / RK4_H_RHO))))
     return max(auto, int(study.mme.n_substeps))
 
 
-def rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
-    """RK4 steps per interval for the assumed model at ``physical`` plus the
-    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`).
-    Overflow terms of states are left out: the fits and runs solve them
-    exactly around each RK4 step (:mod:`~pysindy_mme.core.relaxation`),
-    so their stiffness asks for no step."""
+def extended_rows(study, physical, slots, coefs, proposals):
+    """The assumed model at ``physical`` plus the terms ``slots`` with
+    ``coefs``, as ``rhs_rows(x, stride)`` along every ``stride``-th sample
+    (see :func:`spectral_radius`). Overflow terms of states are left out:
+    the fits and runs solve them exactly around each RK4 step
+    (:mod:`~pysindy_mme.core.relaxation`), so their stiffness asks for no
+    step."""
     u = study.u
     model = study.model_at(physical)
     split = Overflows(
@@ -157,7 +176,15 @@ def rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
                 out[:, i] += coefs[k] * values[:, k]
         return out
 
-    return rk4_substeps(study, rhs_rows, x, study.t)
+    return rhs_rows
+
+
+def rk4_steps_of(study, physical, slots, coefs, proposals, x) -> int:
+    """RK4 steps per interval for the assumed model at ``physical`` plus the
+    terms ``slots`` with ``coefs``, along ``x`` (:func:`rk4_substeps`;
+    overflow terms left out, :func:`extended_rows`)."""
+    rows = extended_rows(study, physical, slots, coefs, proposals)
+    return rk4_substeps(study, rows, x, study.t)
 
 
 def output_error_engine(study, features, substeps) -> OutputErrorModel:
@@ -561,25 +588,66 @@ def confirm_on_measurements(
             )
             fit = engine.fit_held(proposals.slots, theta, estimate.x)
         return Confirmation(list(proposals.slots) if fit else [], fit)
-    confirmation = confirm_terms(
-        engine,
-        assumed.fit,
-        proposals.slots,
-        proposals.start_values,
-        estimate.x,
-        study.alpha,
-        describe,
+
+    def steps_of(on):  # RK4 steps a fit's model needs on the record of ``on``
+        return lambda fit: rk4_steps_of(
+            on, fit.physical, fit.slots, fit.coefficients, proposals, fit.x
+        )
+
+    settings = dict(
+        proposals=proposals.slots,
+        start_values=proposals.start_values,
+        alpha=study.alpha,
+        describe=describe,
         library_candidates=proposals.candidates,
         progress=progress,
         min_effect=study.min_effect,
-        mme_start=(estimate.x, estimate.d, estimate.physical),
-        steps_of=lambda fit: rk4_steps_of(
-            study, fit.physical, fit.slots, fit.coefficients, proposals, fit.x
-        ),
     )
+    part = _search_part(study, engine, assumed, estimate, proposals)
+    if part is not None:
+        part_engine = output_error_engine(
+            long_record.reduced_study(study, part),
+            proposals.evaluate,
+            engine.n_substeps,
+        )
+        part_engine.noise_inflation = engine.noise_inflation
+        confirmation = long_record.confirm_long_record(
+            study,
+            engine,
+            part_engine,
+            assumed.fit,
+            estimate,
+            part,
+            dict(settings, steps_of=steps_of),
+        )
+    else:
+        confirmation = confirm_terms(
+            engine,
+            assumed.fit,
+            x_start=estimate.x,
+            mme_start=(estimate.x, estimate.d, estimate.physical),
+            steps_of=steps_of(study),
+            **settings,
+        )
     confirmation.rejected[:0] = list(proposals.rejected)
     drop_smoothing_artefacts(engine, confirmation, proposals.library, describe)
     return confirmation
+
+
+def _search_part(study, engine, assumed, estimate, proposals):
+    """The part of a long record step 4 searches on (None: the whole record;
+    :func:`~.long_record.search_part`), at the fastest time scale of the
+    assumed model with the regression's proposals along MME's states."""
+    if study.t.size - 1 <= long_record.SEARCH_SAMPLES:
+        return None
+    coef = proposals.coefficients
+    rows, cols = np.nonzero(coef)
+    slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
+    radius = spectral_radius(
+        extended_rows(study, assumed.fit.physical, slots, coef[rows, cols], proposals),
+        estimate.x,
+    )
+    return long_record.search_part(study, engine.n_substeps, radius)
 
 
 # A kept term whose coefficient changes by more than a fifth of itself
