@@ -179,6 +179,10 @@ class Study:
     #: how the models are scored out of sample (:mod:`pysindy_mme.protocols`):
     #: a record protocol with validation records, a :class:`HeldOut` without
     protocol: ValidationProtocol | None = None
+    #: a state estimate of the validation record when the study has one
+    #: already (a stretch held out of its own record: MME's states there);
+    #: None: :func:`~pysindy_mme.protocols.runs.record_guess` estimates it
+    states_guess: np.ndarray | None = None
 
     @property
     def validation_protocol(self) -> ValidationProtocol:

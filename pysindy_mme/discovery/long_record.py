@@ -34,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy import stats
 
 from ..core.integrate import InputSignal
 from .confirm import (
@@ -169,7 +170,10 @@ def confirm_long_record(
         steps_of=steps_of(reduced_study(study, part)),
         **settings,
     )
-    checked, why = check_on_whole_record(engine, assumed, found, estimate, settings)
+    power = _part_power(part, found.fit or part_assumed, settings)
+    checked, why = check_on_whole_record(
+        engine, assumed, found, estimate, settings, power
+    )
     if checked is not None:
         checked.log[:0] = [f"{what}, then checked on the whole record: {why}"]
         return checked
@@ -189,10 +193,43 @@ def confirm_long_record(
     return whole
 
 
-def check_on_whole_record(engine, assumed, found, estimate, settings):
+#: power the part's score tests must have for a term at ``min_effect`` before
+#: the whole record's score pass is left out (see :func:`_part_power`)
+PART_POWER = 0.999
+
+
+def _part_power(part: SearchPart, fit, settings) -> float:
+    """The power of the part's last score test for a term that removes
+    ``min_effect`` of the misfit (0: not known, or no such threshold).
+
+    A term enters when its score test is significant and it removes at least
+    ``min_effect`` of the misfit (:func:`~.confirm.best_score`); that share
+    is a property of the record, not of its length. A part that spans the
+    whole record (every ``s``-th sample) sees every regime in it, so a term
+    that removes ``min_effect`` of the whole record's misfit removes about
+    as much of the part's; when the part's test finds such a term with
+    power :data:`PART_POWER` (the noncentral F distribution),
+    the whole record's score pass (the check's costliest step) would add
+    nothing the part did not: it is left out, and the log says so.
+    """
+    share = float(settings.get("min_effect", 0.0))
+    if not (part.whole_span and share > 0 and fit is not None and fit.ok):
+        return 0.0
+    pool = list(settings["library_candidates"])
+    alpha_term = settings["alpha"] / max(1, len(pool), len(settings["proposals"]))
+    dof = max(fit.n_residuals - fit.n_free - 1, 1)
+    lam = share / (1.0 - share) * dof / fit.inflation  # noncentrality
+    den = dof / fit.inflation
+    critical = stats.f.isf(alpha_term, 1, den)
+    return float(stats.ncf.sf(critical, 1, den, lam))
+
+
+def check_on_whole_record(engine, assumed, found, estimate, settings, power=0.0):
     """``(the confirmation on the whole record, what the check found)``, or
     ``(None, why not)`` when the whole record's search would not stop on
-    ``found``'s terms (see the module docstring)."""
+    ``found``'s terms (see the module docstring). ``power``: of the part's
+    score tests at ``min_effect`` (:func:`_part_power`); at least
+    :data:`PART_POWER`, the whole record's score pass is left out."""
     pool = list(settings["library_candidates"])
     alpha_term = settings["alpha"] / max(1, len(pool), len(settings["proposals"]))
     search = _Search(
@@ -211,6 +248,10 @@ def check_on_whole_record(engine, assumed, found, estimate, settings):
             slots, found.fit.theta, estimate.x, max_iter=POLISH_ITER, tol=1e-9
         )
         fit = search._from_the_clamp(slots, fit, True)
+        search.progress(
+            f"  the whole record: {len(slots)} term(s) fitted, cost {fit.cost:.6g}, "
+            f"{fit.n_iter} it."
+        )
         if not (fit.ok and fit.joined):
             return None, f"the fit of its terms does not join ({fit.message})"
         kept, _, removed = search.backward(slots, fit)
@@ -221,7 +262,13 @@ def check_on_whole_record(engine, assumed, found, estimate, settings):
         pvals = fit.coefficient_p_values()[fit.n_physical : fit.n_physical + len(slots)]
         said.append(f"each term significant (largest p = {np.max(pvals):.2g})")
     candidates = [c for c in pool if c not in search.slots]
-    if candidates:
+    if candidates and power >= PART_POWER:
+        said.append(
+            "no library function would enter (the part spans the record, and "
+            f"its score tests find a term that removes {100 * search.min_effect:.2g}"
+            f" % of the misfit with power {power:.4f}; they found none)"
+        )
+    elif candidates:
         best, p, share, _, enters = best_score(search, candidates)
         if enters:
             name = search.describe(candidates[best])

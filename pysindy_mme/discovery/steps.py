@@ -1034,7 +1034,9 @@ def _settled(fit) -> bool:
     return bool(fit.ok and (fit.converged or fit.message.startswith("converged")))
 
 
-def hold_out(study, gain, fits, build_extended, features, substeps) -> None:
+def hold_out(
+    study, gain, fits, build_extended, features, substeps, states=None
+) -> None:
     """Out-of-sample numbers on ``gain`` from a stretch held out of the
     fitting data (no validation record; nothing when the data cannot spare
     one): the study's :class:`~pysindy_mme.protocols.HeldOut` protocol, both
@@ -1046,7 +1048,7 @@ def hold_out(study, gain, fits, build_extended, features, substeps) -> None:
         )
 
     context = ValidationContext(
-        study, {}, features, substeps, gain.in_sample_runs, refit_without
+        study, {}, features, substeps, gain.in_sample_runs, refit_without, states
     )
     outcome = study.validation_protocol.evaluate(context)
     if outcome is not None:

@@ -256,6 +256,7 @@ def run_study(study, progress: Progress) -> Discovery:
             lambda fit: _extended_model(study, proposals, fit, estimate.x, substeps),
             proposals.evaluate,
             substeps,
+            estimate.x,
         )
     progress.stage("5. gain measured")
     notes, smoothing = _notes(

@@ -72,6 +72,10 @@ class ValidationContext:
         ``refit_without(keep, window, **study_fields) -> (study, models,
         converged)``: both models refitted on the samples ``keep`` only
         (the structure is the study's); None where no refit is possible.
+    states : ndarray (N, n) or None
+        The study's state estimate of its fitting record (MME's states): the
+        guess the runs on a stretch of it start from (the runs do not depend
+        on it; without it, each stretch is estimated again).
     """
 
     study: object
@@ -80,6 +84,7 @@ class ValidationContext:
     substeps: int
     in_sample_runs: dict | None = None
     refit_without: object = None
+    states: object = None
 
 
 @dataclass

@@ -152,6 +152,8 @@ class HeldOut(ValidationProtocol):
         """Both models refitted on the samples ``keep``, then scored on the
         samples ``held``; ``rest``: further fields of the reduced study."""
         study = ctx.study
+        if ctx.states is not None:
+            rest.setdefault("states_guess", np.asarray(ctx.states)[held])
         refitted, models, converged = ctx.refit_without(keep, window, **rest)
         u = study.u
         record = (study.y[held], study.t[held], None if u is None else u[held])

@@ -176,8 +176,12 @@ def observed_window(window, y) -> int:
 def record_guess(study, record):
     """A state estimate of ``record`` (MME with the study's settings): where
     the window fits start and the guess Newton's method starts the free runs
-    from (the runs themselves depend on the window only)."""
+    from (the runs themselves depend on the window only). A study that has
+    one already (``states_guess``: a stretch of its own record) gives it."""
     y_v, t_v, u_v = record
+    known = getattr(study, "states_guess", None)
+    if known is not None and np.shape(known) == (len(t_v), study.n_states):
+        return np.asarray(known, dtype=float)
     estimate = clone(study.mme).set_params(u=u_v)
     with warnings.catch_warnings():
         # an internal start-up estimate: its notes are not about the user's study

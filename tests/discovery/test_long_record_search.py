@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from paper_case import paper_discover
+from scipy import stats
 
 from pysindy_mme.core.integrate import InputSignal
 from pysindy_mme.discovery import long_record
@@ -156,3 +157,36 @@ def test_an_effect_the_part_cannot_see_sends_the_search_to_the_whole_record(
     assert "the score test would add" in log[0] or "not significant" in log[0]
     assert "u" in res.terms["x2"]
     assert res.terms["x2"]["u"] == pytest.approx(0.5, abs=0.05)
+
+
+def _power(n_residuals, whole_span=True, min_effect=0.01, inflation=1.0):
+    part = long_record.SearchPart(
+        np.arange(0, 10 * n_residuals, 10),
+        10,
+        10 * n_residuals + (0 if whole_span else 100),
+    )
+    fit = SimpleNamespace(
+        n_residuals=n_residuals, n_free=5, inflation=inflation, ok=True
+    )
+    settings = dict(
+        min_effect=min_effect, alpha=0.001, library_candidates=range(10), proposals=[]
+    )
+    return long_record._part_power(part, fit, settings)
+
+
+def test_the_part_stands_for_the_whole_records_score_pass_only_with_power():
+    # a term that removes 1 % of the misfit: F ~ noncentral F(1, dof, 0.0101 dof)
+    assert _power(100_000) > long_record.PART_POWER
+    assert _power(1_000) < long_record.PART_POWER
+    # a part that does not span the record, or no practical threshold: never
+    assert _power(100_000, whole_span=False) == 0.0
+    assert _power(100_000, min_effect=0.0) == 0.0
+    # correlated residuals count fewer independent samples
+    assert _power(3_000) > _power(3_000, inflation=3.0)
+    # against a simulation of the score statistic's distribution
+    rng = np.random.default_rng(0)
+    dof, lam = 2_000, 0.01 / 0.99 * 2_000
+    crit = stats.f.isf(0.001 / 10, 1, dof)
+    num = (rng.standard_normal(200_000) + np.sqrt(lam)) ** 2
+    den = rng.chisquare(dof, 200_000) / dof
+    assert _power(dof + 6) == pytest.approx(np.mean(num / den > crit), abs=0.005)
