@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
-from ..core.integrate import InputSignal
+from ..core.integrate import RK4_H_RHO, InputSignal
 from .confirm import (
     POLISH_ITER,
     Confirmation,
@@ -85,19 +85,18 @@ class SearchPart:
         return text
 
 
-def search_part(study, substeps: int, radius: float) -> SearchPart | None:
+def search_part(study, substeps: int, radius) -> SearchPart | None:
     """The part of ``study``'s record the search runs on (None: all of it).
 
     ``substeps``: RK4 steps per interval of the study's fits; ``radius``:
     the spectral radius of the model's Jacobian along the record (its
-    fastest time scale is ``1 / radius``). The stride is the largest at
+    fastest time scale is ``1 / radius``), or a callable that computes it
+    (called only for a record long enough to need it). The stride is the largest at
     which ``substeps`` steps still keep ``h * radius`` within RK4's accuracy
-    (:data:`~.steps.RK4_H_RHO`), at most what brings the record down to
-    :data:`SEARCH_SAMPLES` intervals; a record still longer is cut to its
+    (:data:`~pysindy_mme.core.integrate.RK4_H_RHO`), at most what brings the
+    record down to :data:`SEARCH_SAMPLES` intervals; a record still longer is cut to its
     leading :data:`SEARCH_SAMPLES` thinned intervals.
     """
-    from .steps import RK4_H_RHO
-
     n = int(study.t.size)
     limit = SEARCH_SAMPLES  # read at the call: tests set a smaller one
     # counted in intervals: 10^6 + 1 samples at every 10th are 10^5 intervals
@@ -106,6 +105,8 @@ def search_part(study, substeps: int, radius: float) -> SearchPart | None:
     dt = float(np.max(np.diff(study.t)))
     cap = int(np.ceil((n - 1) / limit))
     free = cap
+    if callable(radius):
+        radius = float(radius())
     if radius > 0 and np.isfinite(radius):
         # (a hair over the ratio: 0.5 / (0.025 * 10) is 1.9999999999999998)
         free = int(np.floor(substeps * RK4_H_RHO / (dt * radius) * (1 + 1e-9)))

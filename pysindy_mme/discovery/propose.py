@@ -282,6 +282,12 @@ def propose_terms(study, x_hat, d_hat, sensitivities=None) -> Proposals:
         opt.fit(theta, d_hat[:, es], feature_names=names, target_names=targets, **extra)
     else:
         opt.fit(theta, d_hat[:, es])
+    if getattr(opt, "Theta_", None) is not None:
+        # pysindy's optimizers keep their design matrix; the study's copy
+        # need not (it is the library at MME's states, rebuilt from them at
+        # will): on a long record it was 80 bytes per sample of a cubic
+        # library in two states, held through every later step
+        opt.Theta_ = None
     n = study.n_states
     coef = np.zeros((n, theta.shape[1]))
     coef[es] = np.asarray(opt.coef_).reshape(es.size, -1)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import stats
 from sklearn.base import clone
 
-from ..core.integrate import simulate_guided
+from ..core.integrate import RK4_H_RHO, simulate_guided
 from ..core.jacobian import rowwise_jacobian
 from ..core.model import ParametricModel
 from ..core.relaxation import Overflows, overflow_columns_of
@@ -31,12 +31,12 @@ from ..exceptions import DivergenceError, UnobservableError
 from ..protocols import ValidationContext
 from ..protocols.runs import FreeRun, free_run, measurement_function, pooled_runs
 from ..solver.output_error import OutputErrorFit, OutputErrorModel
-from . import long_record
 from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
 from .doubts import stop_reason
 from .gain import Gain
 from .identifiability import exact_trade_offs, gauge_choice
+from .long_record import confirm_long_record, reduced_study, search_part
 
 __all__ = [
     "AssumedFit",
@@ -110,10 +110,6 @@ class _AssumedRates:
         return np.asarray(self.f(x, tt, u), dtype=float).reshape(x.shape)
 
 
-#: the RK4 step ``h`` at which ``h * spectral radius`` is accurate enough
-RK4_H_RHO = 0.5
-
-
 def spectral_radius(rhs_rows, x) -> float:
     """The largest ``|eigenvalue|`` of the model's Jacobian along ``x``: its
     fastest time scale is ``1 / radius``.
@@ -135,8 +131,8 @@ def rk4_substeps(study, rhs_rows, x, t) -> int:
 
     The spectral radius of the model's Jacobian along the trajectory sets
     the fastest time scale; RK4 is accurate to ~1e-5 relative per step at
-    ``h rho = 0.5`` (:data:`RK4_H_RHO`). At least the estimator's own
-    ``n_substeps``.
+    ``h rho = 0.5`` (:data:`~pysindy_mme.core.integrate.RK4_H_RHO`). At least
+    the estimator's own ``n_substeps``.
     """
     rho = spectral_radius(rhs_rows, x)
     steps = np.diff(t)
@@ -606,12 +602,12 @@ def confirm_on_measurements(
     part = _search_part(study, engine, assumed, estimate, proposals)
     if part is not None:
         part_engine = output_error_engine(
-            long_record.reduced_study(study, part),
+            reduced_study(study, part),
             proposals.evaluate,
             engine.n_substeps,
         )
         part_engine.noise_inflation = engine.noise_inflation
-        confirmation = long_record.confirm_long_record(
+        confirmation = confirm_long_record(
             study,
             engine,
             part_engine,
@@ -638,16 +634,17 @@ def _search_part(study, engine, assumed, estimate, proposals):
     """The part of a long record step 4 searches on (None: the whole record;
     :func:`~.long_record.search_part`), at the fastest time scale of the
     assumed model with the regression's proposals along MME's states."""
-    if study.t.size - 1 <= long_record.SEARCH_SAMPLES:
-        return None
     coef = proposals.coefficients
     rows, cols = np.nonzero(coef)
     slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
-    radius = spectral_radius(
-        extended_rows(study, assumed.fit.physical, slots, coef[rows, cols], proposals),
-        estimate.x,
-    )
-    return long_record.search_part(study, engine.n_substeps, radius)
+
+    def radius():  # only asked for on a record long enough to need it
+        rhs_rows = extended_rows(
+            study, assumed.fit.physical, slots, coef[rows, cols], proposals
+        )
+        return spectral_radius(rhs_rows, estimate.x)
+
+    return search_part(study, engine.n_substeps, radius)
 
 
 # A kept term whose coefficient changes by more than a fifth of itself

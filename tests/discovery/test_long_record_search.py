@@ -18,7 +18,7 @@ from paper_case import paper_discover
 from scipy import stats
 
 from pysindy_mme.core.integrate import InputSignal
-from pysindy_mme.discovery import long_record
+from pysindy_mme.discovery import long_record, steps
 from pysindy_mme.systems import forced_oscillator, van_der_pol
 
 
@@ -137,7 +137,7 @@ def test_an_effect_the_part_cannot_see_sends_the_search_to_the_whole_record(
     data = late.measure(0, t=late.time(60.0, 40.0))  # 2,401 samples
     monkeypatch.setattr(long_record, "SEARCH_SAMPLES", 800)
     monkeypatch.setattr(
-        long_record,
+        steps,
         "search_part",
         lambda study, substeps, radius: long_record.SearchPart(
             np.arange(801), 1, study.t.size
