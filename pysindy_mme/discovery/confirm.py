@@ -912,6 +912,13 @@ def _too_weak(p, gain, min_effect) -> str:
     return f"does not improve the fit significantly (p = {p:.2g})"
 
 
+def term_alpha(alpha, library_candidates, proposals) -> float:
+    """The level each term is tested at: every term was picked from the
+    whole library, so each must pass at the Bonferroni level, and the chance
+    of any false term stays about ``alpha``."""
+    return alpha / max(1, len(library_candidates), len(proposals))
+
+
 def confirm_terms(
     engine: OutputErrorModel,
     assumed: OutputErrorFit,
@@ -955,9 +962,7 @@ def confirm_terms(
         RK4 steps per interval the model of a fit needs: a fit that does not
         join is taken if it joins at those steps (:meth:`_Search.accept`).
     """
-    # Every term was picked from the whole library: each one must pass at the
-    # Bonferroni level, so that the chance of any false term stays ~alpha.
-    alpha_term = alpha / max(1, len(library_candidates), len(proposals))
+    alpha_term = term_alpha(alpha, library_candidates, proposals)
     search = _Search(
         engine, assumed, alpha_term, describe, library_candidates, progress, min_effect
     )

@@ -44,6 +44,7 @@ from .confirm import (
     _verdict,
     best_score,
     confirm_terms,
+    term_alpha,
 )
 
 __all__ = ["SEARCH_SAMPLES", "SearchPart", "confirm_long_record", "search_part"]
@@ -217,10 +218,10 @@ def _part_power(part: SearchPart, fit, settings) -> float:
     if not (part.whole_span and share > 0 and fit is not None and fit.ok):
         return 0.0
     pool = list(settings["library_candidates"])
-    alpha_term = settings["alpha"] / max(1, len(pool), len(settings["proposals"]))
-    dof = max(fit.n_residuals - fit.n_free - 1, 1)
-    lam = share / (1.0 - share) * dof / fit.inflation  # noncentrality
-    den = dof / fit.inflation
+    alpha_term = term_alpha(settings["alpha"], pool, settings["proposals"])
+    # independent residuals (fewer than the samples when they are correlated)
+    den = max(fit.n_residuals - fit.n_free - 1, 1) / fit.inflation
+    lam = share / (1.0 - share) * den  # the noncentrality of such a term's F
     critical = stats.f.isf(alpha_term, 1, den)
     return float(stats.ncf.sf(critical, 1, den, lam))
 
@@ -232,7 +233,7 @@ def check_on_whole_record(engine, assumed, found, estimate, settings, power=0.0)
     score tests at ``min_effect`` (:func:`_part_power`); at least
     :data:`PART_POWER`, the whole record's score pass is left out."""
     pool = list(settings["library_candidates"])
-    alpha_term = settings["alpha"] / max(1, len(pool), len(settings["proposals"]))
+    alpha_term = term_alpha(settings["alpha"], pool, settings["proposals"])
     search = _Search(
         engine,
         assumed,
@@ -255,13 +256,16 @@ def check_on_whole_record(engine, assumed, found, estimate, settings, power=0.0)
         )
         if not (fit.ok and fit.joined):
             return None, f"the fit of its terms does not join ({fit.message})"
-        kept, _, removed = search.backward(slots, fit)
+        _, _, removed = search.backward(slots, fit)
         if removed:
             names = ", ".join(search.describe(s) for s, _, _ in removed)
             return None, f"{names} not significant there"
         search.slots, search.fit = slots, fit
         pvals = fit.coefficient_p_values()[fit.n_physical : fit.n_physical + len(slots)]
-        said.append(f"each term significant (largest p = {np.max(pvals):.2g})")
+        said.append(
+            f"no term leaves in the backward step (largest Wald p = "
+            f"{np.max(pvals):.2g})"
+        )
     candidates = [c for c in pool if c not in search.slots]
     if candidates and power >= PART_POWER:
         said.append(
