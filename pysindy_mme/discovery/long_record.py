@@ -78,12 +78,21 @@ class SearchPart:
         return int(self.keep[-1]) + self.stride >= self.n_samples
 
     def describe(self, t) -> str:
-        which = "every sample" if self.stride == 1 else f"every {self.stride}th sample"
+        which = (
+            "every sample" if self.stride == 1 else f"every {_nth(self.stride)} sample"
+        )
         text = f"searched on {which} ({self.keep.size:,} of {self.n_samples:,})"
         if not self.whole_span:
             span, whole = t[self.keep[-1]] - t[0], t[-1] - t[0]
             text += f" over the first {span:.6g} of {whole:.6g} time units"
         return text
+
+
+def _nth(k: int) -> str:
+    """``2nd``, ``3rd``, ``11th``, ``21st``: the ordinal of ``k``."""
+    if 10 <= k % 100 <= 20:
+        return f"{k}th"
+    return f"{k}{ {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th') }"
 
 
 def search_part(study, substeps: int, radius) -> SearchPart | None:

@@ -66,6 +66,27 @@ def test_stride_is_the_largest_the_integration_allows_then_a_leading_window():
     assert part.stride == 1 and part.keep.size == S + 1
 
 
+def test_the_log_names_the_stride_in_english():
+    t = np.arange(1001.0)
+    said = [
+        long_record.SearchPart(np.arange(0, 1001, k), k, 1001).describe(t)
+        for k in (1, 2, 3, 4, 11, 12, 13, 21, 22, 101, 111)
+    ]
+    assert [s.split(" (")[0] for s in said] == [
+        "searched on every sample",
+        "searched on every 2nd sample",
+        "searched on every 3rd sample",
+        "searched on every 4th sample",
+        "searched on every 11th sample",
+        "searched on every 12th sample",
+        "searched on every 13th sample",
+        "searched on every 21st sample",
+        "searched on every 22nd sample",
+        "searched on every 101st sample",
+        "searched on every 111th sample",
+    ]
+
+
 def test_thinned_inputs_are_the_whole_records_inputs_between_the_samples():
     t = np.linspace(0.0, 10.0, 1001)
     u = np.sin(3.0 * t) + np.sign(np.sin(7.0 * t))
@@ -106,7 +127,7 @@ def test_search_on_every_third_sample_matches_the_whole_search(monkeypatch):
     whole = _vdp_study(10**9, monkeypatch)
     part = _vdp_study(1500, monkeypatch)  # 4,000 intervals: every 3rd
     assert set(part.terms["x2"]) == set(whole.terms["x2"]) == {"x1", "x2", "x1^2 x2"}
-    assert part.confirmation.log[0].startswith("searched on every 3th sample")
+    assert part.confirmation.log[0].startswith("searched on every 3rd sample")
     assert "checked on the whole record" in part.confirmation.log[0]
     assert not any("searched on" in line for line in whole.confirmation.log)
     # the final fit is the whole record's: the same optimum as the whole search
