@@ -14,7 +14,7 @@ no breaks), the search runs on a part of it (:func:`search_part`): every
 per interval than at the record's own rate (a denser record loses nothing
 the integration needs: 10 s at 100 kHz is searched at 10 kHz), and, if that
 is still longer, its leading :data:`SEARCH_SAMPLES` intervals (25,000 s at
-40 Hz is searched over its first 15,000 s at about 7 Hz). Every test there
+40 Hz is searched at every 7th sample over its first 17,500 s). Every test there
 is a valid test: a subset of samples with white noise of the same
 covariance.
 
@@ -101,11 +101,12 @@ def search_part(study, substeps: int, radius) -> SearchPart | None:
     ``substeps``: RK4 steps per interval of the study's fits; ``radius``:
     the spectral radius of the model's Jacobian along the record (its
     fastest time scale is ``1 / radius``), or a callable that computes it
-    (called only for a record long enough to need it). The stride is the largest at
-    which ``substeps`` steps still keep ``h * radius`` within RK4's accuracy
-    (:data:`~pysindy_mme.core.integrate.RK4_H_RHO`), at most what brings the
-    record down to :data:`SEARCH_SAMPLES` intervals; a record still longer is cut to its
-    leading :data:`SEARCH_SAMPLES` thinned intervals.
+    (called only for a record long enough to need it). The stride is the
+    largest at which ``substeps`` steps still keep ``h * radius`` within
+    RK4's accuracy (:data:`~pysindy_mme.core.integrate.RK4_H_RHO`), at most
+    what brings the record down to :data:`SEARCH_SAMPLES` intervals; a record
+    still longer is cut to its leading :data:`SEARCH_SAMPLES` thinned
+    intervals.
     """
     n = int(study.t.size)
     limit = SEARCH_SAMPLES  # read at the call: tests set a smaller one
@@ -135,12 +136,10 @@ def reduced_study(study, part: SearchPart):
     keep = part.keep
     t = study.t[keep]
     inputs = study.inputs
-    if inputs.is_none or callable(inputs.u) or part.stride == 1:
-        signal = (
-            inputs.subset(0, int(keep[-1]) + 1)
-            if part.stride == 1
-            else InputSignal(inputs.u, t, inputs.hold)
-        )
+    if part.stride == 1:
+        signal = inputs.subset(0, int(keep[-1]) + 1)
+    elif inputs.is_none or callable(inputs.u):
+        signal = InputSignal(inputs.u, t, inputs.hold)
     else:
         signal = InputSignal(inputs.at, t, inputs.hold)
     readings = getattr(study, "readings", None)
@@ -156,7 +155,7 @@ def reduced_study(study, part: SearchPart):
 
 
 def confirm_long_record(
-    study, engine, part_engine, assumed, estimate, part: SearchPart, settings
+    study, engine, part_engine, assumed, estimate, part: SearchPart, settings, steps_of
 ) -> Confirmation:
     """The search on ``part`` of the record, checked on all of it.
 
@@ -164,11 +163,11 @@ def confirm_long_record(
     of the part; ``assumed``: the assumed model's fit on the whole record;
     ``settings``: the keyword arguments of :func:`~.confirm.confirm_terms`
     but the record's (``proposals``, ``start_values``, ``alpha``,
-    ``describe``, ``library_candidates``, ``progress``, ``min_effect``) and
-    ``steps_of(study) -> (fit -> int)``.
+    ``describe``, ``library_candidates``, ``progress``, ``min_effect``);
+    ``steps_of(study) -> (fit -> int)``: the RK4 steps a fit's model needs
+    on the record of ``study`` (the part's or the whole).
     """
     keep = part.keep
-    steps_of = settings.pop("steps_of")
     progress = settings.get("progress") or (lambda msg: None)
     what = part.describe(study.t)
     progress(f"  {what}")

@@ -50,6 +50,7 @@ __all__ = [
     "confirm_on_measurements",
     "measure_gain",
     "output_error_engine",
+    "proposal_rows",
     "rk4_steps_of",
     "rk4_substeps",
     "step_size_check",
@@ -614,7 +615,8 @@ def confirm_on_measurements(
             assumed.fit,
             estimate,
             part,
-            dict(settings, steps_of=steps_of),
+            settings,
+            steps_of,
         )
     else:
         confirmation = confirm_terms(
@@ -630,19 +632,26 @@ def confirm_on_measurements(
     return confirmation
 
 
+def proposal_rows(study, assumed: AssumedFit, proposals):
+    """The assumed model at its fitted parameters plus every term the
+    regression proposed, at the regression's values, as ``rhs_rows(x,
+    stride)`` (:func:`extended_rows`): the model whose time scales step 4's
+    RK4 steps and the part of a long record it searches are chosen for."""
+    coef = proposals.coefficients
+    rows, cols = np.nonzero(coef)
+    slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
+    return extended_rows(
+        study, assumed.fit.physical, slots, coef[rows, cols], proposals
+    )
+
+
 def _search_part(study, engine, assumed, estimate, proposals):
     """The part of a long record step 4 searches on (None: the whole record;
     :func:`~.long_record.search_part`), at the fastest time scale of the
     assumed model with the regression's proposals along MME's states."""
-    coef = proposals.coefficients
-    rows, cols = np.nonzero(coef)
-    slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
 
     def radius():  # only asked for on a record long enough to need it
-        rhs_rows = extended_rows(
-            study, assumed.fit.physical, slots, coef[rows, cols], proposals
-        )
-        return spectral_radius(rhs_rows, estimate.x)
+        return spectral_radius(proposal_rows(study, assumed, proposals), estimate.x)
 
     return search_part(study, engine.n_substeps, radius)
 

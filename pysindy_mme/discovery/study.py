@@ -41,7 +41,9 @@ from .steps import (
     output_error_engine,
     overshoots,
     parameter_sensitivities,
+    proposal_rows,
     rk4_steps_of,
+    rk4_substeps,
     set_aside_parameter_duplicates,
     smoothing_check,
     step_size_check,
@@ -539,12 +541,7 @@ def _parameter_advice(bounds: dict, on_bound: list):
 
 def _substeps(study, assumed, proposals, x_hat) -> int:
     """RK4 steps per interval for the assumed model plus the proposals."""
-    coef = proposals.coefficients
-    rows, cols = np.nonzero(coef)
-    slots = [(int(i), int(j)) for i, j in zip(rows, cols)]
-    return rk4_steps_of(
-        study, assumed.fit.physical, slots, coef[rows, cols], proposals, x_hat
-    )
+    return rk4_substeps(study, proposal_rows(study, assumed, proposals), x_hat, study.t)
 
 
 def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, substeps):
