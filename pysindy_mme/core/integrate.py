@@ -378,6 +378,37 @@ def simulate(
     return SimulationResult(out, diverged)
 
 
+#: a guided free run solves its Newton iteration over blocks of intervals,
+#: each from the exact end state of the block before: over a long record the
+#: linearised recursion can amplify the guess's small defects (a limit cycle's
+#: neutral phase direction adds them up over thousands of periods) where a
+#: shorter block converges. A block that does not converge is cut to a
+#: ``GUIDED_SHRINK``-th; one of ``GUIDED_MIN_BLOCK`` intervals that does not
+#: is run by the sequential loop, over stretches that double while Newton
+#: keeps failing (so a guess that is no use costs O(log N) Newton attempts)
+GUIDED_MIN_BLOCK = 64
+GUIDED_SHRINK = 8
+#: a Newton iteration whose largest defect grows by more than this factor has
+#: left the region where the linearisation holds: the block is cut at once
+GUIDED_BLOW_UP = 1e3
+
+
+class _FromInterval:
+    """``inputs`` read from interval ``offset`` on: a sequential stretch of a
+    guided run sees the record's own inputs (a subset would move a cubic
+    hold's end conditions)."""
+
+    def __init__(self, inputs: InputSignal, offset: int):
+        self.inputs, self.offset = inputs, int(offset)
+
+    @property
+    def is_none(self) -> bool:
+        return self.inputs.is_none
+
+    def on_intervals(self, frac: float, k: int):
+        return self.inputs.on_intervals(frac, self.offset + k)
+
+
 def simulate_guided(
     rhs,
     x0,
@@ -399,9 +430,11 @@ def simulate_guided(
     with LAPACK's banded triangular solver. From a guess near the answer
     (a state estimate of the same record) it converges in a few iterations,
     so a free run of 10^5 samples costs a few vectorised passes instead of a
-    Python loop per sample. When Newton does not converge (a guess far from
-    a model that departs from the data, a model that blows up), the
-    sequential :func:`simulate` decides.
+    Python loop per sample. Where Newton does not converge over the whole
+    record, it runs over shorter blocks, each from the exact end of the one
+    before (``GUIDED_MIN_BLOCK``); where it does not converge even there (a
+    model that departs from the data, a model that blows up), the sequential
+    :func:`simulate` decides, and reports a divergence as it does.
 
     Parameters
     ----------
@@ -409,16 +442,16 @@ def simulate_guided(
     jac_x : callable, same arguments, ``-> (K, n, n)``; central differences
         of ``rhs`` if None.
     guess : ndarray (N, n)
+    max_iter : int
+        Newton iterations per block.
     Other parameters as :func:`simulate` (``rhs`` there is row-batched with
     a scalar time; here it is vectorised over intervals).
     """
-    from scipy.linalg import lapack
-
     t = np.asarray(t, dtype=float)
+    guess = np.asarray(guess, dtype=float)
     x = np.array(guess, dtype=float)
     x[0] = np.asarray(x0, dtype=float).ravel()
     N, n = x.shape
-    h = np.diff(t)
     inputs = inputs if inputs is not None else InputSignal(None, t)
     if jac_x is None:
 
@@ -429,41 +462,96 @@ def simulate_guided(
     bound = 1e8 * scale if bound is None else bound
     # a model's overflow terms, solved exactly around each RK4 step
     rhs, split = split_form(rhs)
-    kd = 2 * n - 1
-    for _ in range(max_iter):
-        with np.errstate(all="ignore"):
-            flow = rk4_flow(
-                rhs,
-                x[:-1],
-                t[:-1],
-                h,
-                inputs.on_intervals,
-                substeps,
-                jac_x=jac_x,
-                split=split,
-            )
-        defect = flow.phi - x[1:]
-        A = flow.D
-        if not (np.all(np.isfinite(defect)) and np.all(np.isfinite(A))):
-            break
-        if float(np.max(np.abs(defect))) <= 1e-12 * scale:
-            if float(np.max(np.abs(x))) >= bound:
-                break
-            return SimulationResult(x[None], np.array([-1]))
-        ab = np.zeros((kd + 1, (N - 1) * n))
-        ab[0] = 1.0
-        for i in range(n):
-            for j in range(n):
-                ab[n + i - j, j : (N - 2) * n : n] = -A[1:, i, j]
-        step, info = lapack.dtbtrs(ab, defect.reshape(-1, 1), uplo="L")
-        if info != 0 or not np.all(np.isfinite(step)):
-            break
-        x[1:] += step.reshape(N - 1, n)
-        if not np.all(np.isfinite(x)) or float(np.max(np.abs(x))) > bound:
-            break
 
     def rhs_rows(X, s, u):
         uu = None if u is None else np.broadcast_to(u, (X.shape[0], u.shape[-1]))
         return rhs(X, np.full(X.shape[0], s), uu)
 
-    return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)
+    if not np.all(np.isfinite(x[0])):
+        return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)
+    block = _NewtonBlock(rhs, x, t, inputs, substeps, jac_x, split)
+    start, size, stretch = 0, N - 1, GUIDED_MIN_BLOCK
+    while start < N - 1:
+        stop = min(start + size, N - 1)
+        if block.solve(start, stop, 1e-12 * scale, bound, max_iter):
+            start, size, stretch = stop, 2 * size, GUIDED_MIN_BLOCK
+            continue
+        x[start + 1 : stop + 1] = guess[start + 1 : stop + 1]
+        if size > GUIDED_MIN_BLOCK:
+            size = max(GUIDED_MIN_BLOCK, size // GUIDED_SHRINK)
+            continue
+        stop = min(start + stretch, N - 1)
+        run = simulate(
+            rhs_rows,
+            x[start],
+            t[start : stop + 1],
+            _FromInterval(inputs, start),
+            substeps,
+            bound=bound,
+            split=split,
+        )
+        at = int(run.diverged_at[0])
+        if at >= 0:
+            x[start + at :] = np.nan
+            x[start + 1 : start + at] = run.x[0, 1:at]
+            return SimulationResult(x[None], np.array([start + at]))
+        x[start + 1 : stop + 1] = run.x[0, 1:]
+        start, stretch = stop, 2 * stretch
+        size = GUIDED_MIN_BLOCK * GUIDED_SHRINK
+    return SimulationResult(x[None], np.array([-1]))
+
+
+class _NewtonBlock:
+    """Newton's method on the free run's intervals ``start:stop`` of ``x``
+    (in place), from the exact state ``x[start]``."""
+
+    def __init__(self, rhs, x, t, inputs, substeps, jac_x, split):
+        self.rhs, self.x, self.t = rhs, x, t
+        self.h = np.diff(t)
+        self.inputs, self.substeps = inputs, substeps
+        self.jac_x, self.split = jac_x, split
+
+    def solve(self, start, stop, tol, bound, max_iter) -> bool:
+        """Whether the block converged (every defect at most ``tol``) and
+        stayed within ``bound``."""
+        from scipy.linalg import lapack
+
+        x, n, K = self.x, self.x.shape[1], stop - start
+        rows = slice(start, stop)
+        kd = 2 * n - 1
+        last = np.inf
+        for _ in range(max_iter):
+            with np.errstate(all="ignore"):
+                flow = rk4_flow(
+                    self.rhs,
+                    x[rows],
+                    self.t[rows],
+                    self.h[rows],
+                    lambda frac: self.inputs.on_intervals(frac, rows),
+                    self.substeps,
+                    jac_x=self.jac_x,
+                    split=self.split,
+                )
+            defect = flow.phi - x[start + 1 : stop + 1]
+            A = flow.D
+            if not (np.all(np.isfinite(defect)) and np.all(np.isfinite(A))):
+                return False
+            worst = float(np.max(np.abs(defect)))
+            if worst <= tol:
+                return float(np.max(np.abs(x[start : stop + 1]))) < bound
+            if worst > GUIDED_BLOW_UP * last:
+                return False
+            last = worst
+            ab = np.zeros((kd + 1, K * n))
+            ab[0] = 1.0
+            for i in range(n):
+                for j in range(n):
+                    ab[n + i - j, j : (K - 1) * n : n] = -A[1:, i, j]
+            step, info = lapack.dtbtrs(ab, defect.reshape(-1, 1), uplo="L")
+            if info != 0 or not np.all(np.isfinite(step)):
+                return False
+            x[start + 1 : stop + 1] += step.reshape(K, n)
+            inside = x[start + 1 : stop + 1]
+            if not np.all(np.isfinite(inside)) or float(np.max(np.abs(inside))) > bound:
+                return False
+        return False

@@ -10,7 +10,10 @@
   linear system, the same one-step map as :func:`rk4_flow` for every hold,
   and blow-up reported per trajectory (``diverged_at``) without an exception.
 * :func:`simulate_guided`: the same trajectory as :func:`simulate`, from a
-  poor guess, with inputs, and for a model that blows up.
+  poor guess, with inputs, and for a model that blows up; past a stretch of
+  the guess where Newton cannot converge over the whole record, with the
+  sequential loop confined to a short stretch; a blow-up late in a record
+  reported at the sample :func:`simulate` reports it.
 """
 
 import numpy as np
@@ -18,6 +21,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pysindy_mme.core.integrate import (
+    GUIDED_MIN_BLOCK,
     InputSignal,
     rk4_flow,
     simulate,
@@ -362,3 +366,56 @@ def test_simulate_guided_reports_blow_up_as_simulate_does():
     np.testing.assert_array_equal(np.isnan(guided.x), np.isnan(free.x))
     k = free.diverged_at[0]
     np.testing.assert_allclose(guided.x[0, :k], free.x[0, :k], rtol=1e-12)
+
+
+def _counting(rhs):
+    """``rhs`` counting its rows: one-row calls are the sequential loop's."""
+    counts = {"calls": 0, "one_row": 0}
+
+    def counted(X, s, u):
+        counts["calls"] += 1
+        counts["one_row"] += X.shape[0] == 1
+        return rhs(X, s, u)
+
+    return counted, counts
+
+
+def test_simulate_guided_confines_the_sequential_loop_to_a_bad_stretch():
+    # One sample of the guess far off the limit cycle (x1 = 30, where
+    # (1 - x1^2) x2 makes the linearised RK4 step explode): Newton over the
+    # whole record cannot converge, blocks can, except around that sample.
+    t = np.arange(20_001) * 0.025
+    x0 = np.array([2.0, 0.0])
+    free = simulate(_rows(_vdp), x0, t, substeps=2).x[0]
+    guess = free.copy()
+    guess[12_000] = [30.0, 0.0]
+    counted, counts = _counting(_vdp)
+    guided = simulate_guided(counted, x0, t, None, 2, guess)
+    assert guided.diverged_at[0] == -1
+    np.testing.assert_allclose(guided.x[0], free, rtol=0, atol=1e-10)
+    # one sequential stretch of GUIDED_MIN_BLOCK intervals (2 substeps, 4
+    # stages), where the whole record would take 160,000 one-row calls
+    assert 0 < counts["one_row"] <= 2 * 4 * 2 * GUIDED_MIN_BLOCK
+    assert counts["calls"] < 0.02 * 4 * 2 * t.size
+
+
+@pytest.mark.parametrize("hold", ["linear", "zoh", "cubic"])
+def test_simulate_guided_reports_a_late_blow_up_as_simulate_does(hold):
+    # dx/dt = u x^2 with u switched on at t = 3: x stays at 1, then blows
+    # up near t = 4; Newton solves the early blocks, the loop finds the sample
+    t = np.linspace(0.0, 6.0, 6_001)
+    sig = InputSignal(np.where(t >= 3.0, 1.0, 0.0), t, hold=hold)
+
+    def quadratic(X, s, u):
+        return u * X**2
+
+    x0 = np.array([1.0])
+    free = simulate(_rows(quadratic), x0, t, sig, substeps=2)
+    counted, counts = _counting(quadratic)
+    guided = simulate_guided(counted, x0, t, sig, 2, np.ones((t.size, 1)))
+    assert guided.diverged_at[0] == free.diverged_at[0] > 3_000
+    np.testing.assert_array_equal(np.isnan(guided.x), np.isnan(free.x))
+    k = free.diverged_at[0]
+    # Newton's defects are 1e-12 absolute; x grows to 2e3 before the bound
+    np.testing.assert_allclose(guided.x[0, :k], free.x[0, :k], rtol=1e-10)
+    assert counts["one_row"] < 4 * 2 * 3_000  # the loop did not start at t = 0
