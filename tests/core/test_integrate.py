@@ -419,3 +419,22 @@ def test_simulate_guided_reports_a_late_blow_up_as_simulate_does(hold):
     # Newton's defects are 1e-12 absolute; x grows to 2e3 before the bound
     np.testing.assert_allclose(guided.x[0, :k], free.x[0, :k], rtol=1e-10)
     assert counts["one_row"] < 4 * 2 * 3_000  # the loop did not start at t = 0
+
+
+def test_simulate_guided_returns_a_guess_that_is_the_run_without_derivatives():
+    # a converged fit's trajectory: checked on a sample of intervals, then on
+    # all of them, with no Jacobian (which would take 2 n more calls a stage)
+    t = np.arange(5_001) * 0.025
+    x0 = np.array([2.0, 0.0])
+    free = simulate(_rows(_vdp), x0, t, substeps=2).x[0]
+    counted, counts = _counting(_vdp)
+    guided = simulate_guided(counted, x0, t, None, 2, free)
+    np.testing.assert_array_equal(guided.x[0], free)
+    assert counts["calls"] == 2 * 4 * 2
+    # a guess off the run by 1e-9 at one sample is not taken for it
+    off = free.copy()
+    off[2_500, 1] += 1e-9
+    counted, counts = _counting(_vdp)
+    guided = simulate_guided(counted, x0, t, None, 2, off)
+    np.testing.assert_allclose(guided.x[0], free, rtol=0, atol=1e-12)
+    assert counts["calls"] > 2 * 4 * 2
