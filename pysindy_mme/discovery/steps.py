@@ -1003,8 +1003,9 @@ HELD_OUT_TOL = 1e-3
 def _refit_without(
     study, keep, window, fits, build_extended, features, substeps, **rest
 ):
-    """Both models refitted on the samples ``keep`` only: ``(the study on
-    them, {"assumed", "extended"} models, both refits converged)``.
+    """Both models refitted on the samples ``keep`` only (an assumed model
+    with no parameter or offset is the same model without them): ``(the
+    study on them, {"assumed", "extended"} models, both refits converged)``.
     ``rest``: further fields of the reduced study (its record breaks)."""
     u = study.u
     reduced = replace(
@@ -1019,18 +1020,18 @@ def _refit_without(
     )
     engine = output_error_engine(reduced, features, substeps)
     a, e = fits["assumed"], fits["extended"]
-    refit_a = engine.fit((), a.theta, a.x[keep], tol=HELD_OUT_TOL)
-    refit_e = (
-        engine.fit(e.slots, e.theta, e.x[keep], tol=HELD_OUT_TOL)
-        if e.slots
-        else refit_a
-    )
-    assumed_model = study.model_at(refit_a.physical)
-    models = {
-        "assumed": assumed_model,
-        "extended": build_extended(refit_e) if e.slots else assumed_model,
-    }
-    return reduced, models, _settled(refit_a) and _settled(refit_e)
+    if a.theta.size:
+        refit_a = engine.fit((), a.theta, a.x[keep], tol=HELD_OUT_TOL)
+        assumed_model, settled = study.model_at(refit_a.physical), _settled(refit_a)
+    else:
+        # nothing in the assumed model is fitted (its initial state is the
+        # window's, not the fit's): it is the same model without the stretch
+        assumed_model, settled = study.model_at(a.physical), True
+    if not e.slots:
+        return reduced, {"assumed": assumed_model, "extended": assumed_model}, settled
+    refit_e = engine.fit(e.slots, e.theta, e.x[keep], tol=HELD_OUT_TOL)
+    models = {"assumed": assumed_model, "extended": build_extended(refit_e)}
+    return reduced, models, settled and _settled(refit_e)
 
 
 def _settled(fit) -> bool:
