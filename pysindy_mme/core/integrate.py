@@ -251,20 +251,38 @@ def rk4_flow(
             X, D = split(X, D, 0.5 * hs)
         k1 = rhs(X, tj, u0)
         if jac:
-            dk1 = derivative(X, tj, u0, D)
+            # The derivatives are summed as the stages come (acc) and the
+            # next stage's point (arg) is written over the last one: four
+            # arrays of D's size alive instead of eight, which with many
+            # candidates' columns (the score tests) set a study's peak.
+            dk = derivative(X, tj, u0, D)
+            acc = np.multiply(dk, hs3 / 6.0)
+            acc += D
+            arg = np.multiply(dk, 0.5 * hs3)
+            arg += D
         X2 = X + 0.5 * hs * k1
         k2 = rhs(X2, half, uh)
         if jac:
-            dk2 = derivative(X2, half, uh, D + 0.5 * hs3 * dk1)
+            dk = derivative(X2, half, uh, arg)
+            np.multiply(dk, 0.5 * hs3, out=arg)
+            arg += D
+            dk *= hs3 / 3.0
+            acc += dk
         X3 = X + 0.5 * hs * k2
         k3 = rhs(X3, half, uh)
         if jac:
-            dk3 = derivative(X3, half, uh, D + 0.5 * hs3 * dk2)
+            dk = derivative(X3, half, uh, arg)
+            np.multiply(dk, hs3, out=arg)
+            arg += D
+            dk *= hs3 / 3.0
+            acc += dk
         X4 = X + hs * k3
         k4 = rhs(X4, end, u1)
         if jac:
-            dk4 = derivative(X4, end, u1, D + hs3 * dk3)
-            D = D + hs3 / 6.0 * (dk1 + 2.0 * dk2 + 2.0 * dk3 + dk4)
+            dk = derivative(X4, end, u1, arg)
+            dk *= hs3 / 6.0
+            acc += dk
+            D, acc, arg, dk = acc, None, None, None
         X = X + hs / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         if split is not None:
             X, D = split(X, D, 0.5 * hs)

@@ -236,6 +236,53 @@ def test_rk4_flow_derivatives_match_finite_differences_of_the_map(hold):
         np.testing.assert_allclose(res.B(2)[:, :, j], dp, rtol=1e-7, atol=1e-8)
 
 
+def test_rk4_flow_derivatives_equal_the_textbook_variational_stages():
+    # The derivative of the RK4 map written stage by stage as in a textbook
+    # (every stage's derivative kept, summed at the end): rk4_flow sums them
+    # as they come, to hold fewer arrays; the numbers must agree to rounding.
+    p = np.array([1.3, 0.2])
+    rhs, jac_x, jac_p = _duffing(p)
+    t, x = _intervals(K=40, seed=3)
+    h = np.diff(t)
+    sig = InputSignal(np.cos(2 * t), t, hold="cubic")
+    substeps = 2
+    res = rk4_flow(
+        rhs, x, t[:-1], h, sig.on_intervals, substeps, jac_x, jac_p, n_params=2
+    )
+    X = x.copy()
+    D = np.concatenate(
+        [np.repeat(np.eye(2)[None], len(x), 0), np.zeros((len(x), 2, 2))], 2
+    )
+    hs = (h / substeps)[:, None]
+    H = hs[:, :, None]
+
+    def dstage(Xs, s, us, Dpre):
+        return np.einsum("kij,kjm->kim", jac_x(Xs, s, us), Dpre) + np.concatenate(
+            [np.zeros((len(Xs), 2, 2)), jac_p(Xs, s, us)], 2
+        )
+
+    for j in range(substeps):
+        s0 = t[:-1] + j * hs[:, 0]
+        u = [sig.on_intervals((j + c) / substeps) for c in (0.0, 0.5, 1.0)]
+        k1, d1 = rhs(X, s0, u[0]), dstage(X, s0, u[0], D)
+        X2, D2 = X + 0.5 * hs * k1, D + 0.5 * H * d1
+        k2, d2 = (
+            rhs(X2, s0 + hs[:, 0] / 2, u[1]),
+            dstage(X2, s0 + hs[:, 0] / 2, u[1], D2),
+        )
+        X3, D3 = X + 0.5 * hs * k2, D + 0.5 * H * d2
+        k3, d3 = (
+            rhs(X3, s0 + hs[:, 0] / 2, u[1]),
+            dstage(X3, s0 + hs[:, 0] / 2, u[1], D3),
+        )
+        X4, D4 = X + hs * k3, D + H * d3
+        k4, d4 = rhs(X4, s0 + hs[:, 0], u[2]), dstage(X4, s0 + hs[:, 0], u[2], D4)
+        X = X + hs / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        D = D + H / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+    np.testing.assert_allclose(res.phi, X, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(res.D, D, rtol=1e-13, atol=1e-13)
+
+
 def test_rk4_flow_without_jacobian_returns_no_derivatives():
     rhs, _, _ = _duffing(np.array([1.0, 0.1]))
     t, x = _intervals()
