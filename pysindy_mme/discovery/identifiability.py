@@ -12,11 +12,14 @@ explanation.
 
 How: the measured output of the model's free run is differentiated with
 respect to every fitted quantity (initial state, parameters, correction
-coefficients, offsets) by central differences of whole free runs
-(independent of the fit's own linear algebra), whitened by the noise, and
-its columns scaled to unit length. A singular value below ``NULL_TOLERANCE``
-of the largest is an exact trade-off (the columns are linearly dependent to
-within the differencing error, ~1e-9 here); its singular vector says which
+coefficients, offsets) along the run itself: each interval's RK4 map
+differentiated stage by stage, chained over the intervals by one banded
+solve for all quantities at once (independent of the fit's own linear
+algebra: no KKT system; tested against central differences of whole free
+runs), whitened by the noise, and its columns scaled to unit length. A
+singular value below ``NULL_TOLERANCE`` of the largest is an exact
+trade-off (the columns are linearly dependent to within the model
+Jacobian's differencing error, ~1e-9 here); its singular vector says which
 quantities move together and in which proportion, so the report can say
 what *is* determined (``b * a2``, ``c / M``). The state trajectories along
 that direction tell which states' scale is undetermined (a hidden state).
@@ -28,20 +31,21 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.integrate import simulate_guided
+from ..core.integrate import rk4_flow, simulate_guided
 from ..core.model import ParametricModel, RatesAt
 from ..protocols.runs import measurement_function
 
 __all__ = ["TradeOff", "exact_trade_offs", "gauge_choice"]
 
 #: smallest singular value of the column-scaled output Jacobian, relative to
-#: the largest, below which a direction is undetermined: central differences
-#: of free runs are accurate to ~1e-9, genuinely weak directions (look-alike
-#: terms) sit at 1e-2..1e-4 and are judged by their standard errors instead
+#: the largest, below which a direction is undetermined: the sensitivities
+#: are accurate to ~1e-9 (the model's Jacobian by central differences),
+#: genuinely weak directions (look-alike terms) sit at 1e-2..1e-4 and are
+#: judged by their standard errors instead
 NULL_TOLERANCE = 1e-6
 #: free runs of at most this many samples (a prefix of longer records)
 MAX_SAMPLES = 100_000
-#: relative step of the central differences
+#: relative step of the central differences of a callable measurement
 STEP = 1e-5
 #: a quantity takes part in a direction when its share is at least this
 INVOLVED = 0.1
@@ -227,27 +231,18 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
     labels = [f"{name}(0)" for name in state_names] + list(names)
     scale_x = np.sqrt(np.mean(fit.x[:K] ** 2, axis=0)) + 1e-300
 
-    def states_at(q):
-        x0, th = q[:n], q[n:]
-        rhs = RatesAt(model, th)
-        with np.errstate(all="ignore"):
-            sim = simulate_guided(rhs, x0, t, inputs, engine.n_substeps, guess)
-        return sim.x[0]
-
-    # The perturbed runs start from the unperturbed free run, not the fit's
-    # trajectory: a model that departs from the data (a library without the
-    # effect) runs far from its fit, Newton from the fit would fail and fall
-    # back to a sequential loop for every column (14 s on 2,000 samples);
-    # from the free run it converges in a step or two.
-    base = states_at(q0)
-    if np.all(np.isfinite(base)):
-        guess = base
+    # The free run, from the fit's trajectory (a converged fit's is the run
+    # already), and its exact sensitivities to every quantity at once.
+    rhs = RatesAt(model, theta)
+    with np.errstate(all="ignore"):
+        base = simulate_guided(rhs, q0[:n], t, inputs, engine.n_substeps, guess).x[0]
+        S = _run_sensitivities(model, theta, n_dyn, base, t, inputs, engine.n_substeps)
+    if not (np.all(np.isfinite(base)) and np.all(np.isfinite(S))):
+        return None  # the free run left the finite range: nothing to say here
     whiten = _whitener(engine.R)
-    measure = measurement_function(engine.measurement)
+    derivative = _measurement_derivative(engine.measurement, base)
     columns, state_columns = [], []
     for j in range(q0.size):
-        ref = abs(q0[j]) if q0[j] != 0 else (scale_x[j] if j < n else 1.0)
-        h = STEP * ref
         if j >= n + n_dyn:
             # an offset: the output moves by one unit per unit offset
             k = j - n - n_dyn
@@ -256,15 +251,8 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
             columns.append((col @ whiten.T).ravel())
             state_columns.append(np.zeros((K, n)))
             continue
-        up, down = q0.copy(), q0.copy()
-        up[j] += h
-        down[j] -= h
-        xu, xd = states_at(up), states_at(down)
-        if not (np.all(np.isfinite(xu)) and np.all(np.isfinite(xd))):
-            return None  # a free run left the finite range: nothing to say here
-        state_columns.append((xu - xd) / (2 * h))
-        dy = (measure(xu) - measure(xd)) / (2 * h)
-        columns.append((dy @ whiten.T).ravel())
+        state_columns.append(S[:, :, j])
+        columns.append((derivative(S[:, :, j]) @ whiten.T).ravel())
     J = np.column_stack(columns)
     J[:, ~np.isfinite(J).all(axis=0)] = 0.0
     norms = np.linalg.norm(J, axis=0)
@@ -296,6 +284,68 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
         hidden,
         list(state_names),
     )
+
+
+def _run_sensitivities(model, theta, n_dyn, x, t, inputs, substeps):
+    """``d x_k / d (x_0, theta[:n_dyn])`` along the free run ``x``: ``(K, n,
+    n + n_dyn)``. Each interval's derivatives are the RK4 map's own (its
+    stages differentiated, :func:`~pysindy_mme.core.integrate.rk4_flow`);
+    the chain ``S_{k+1} = A_k S_k + B_k`` from ``S_0 = [I 0]`` is one
+    banded lower-triangular solve for every column at once."""
+    from scipy.linalg import lapack
+
+    K, n = x.shape
+    m = n + n_dyn
+    flow = rk4_flow(
+        lambda z, s, u: model(z, s, u, theta),
+        x[:-1],
+        t[:-1],
+        np.diff(t),
+        inputs.on_intervals,
+        substeps,
+        jac_x=lambda z, s, u: model.jacobian(z, s, u, theta),
+        jac_p=lambda z, s, u: model.param_jacobian(z, s, u, theta)[:, :, :n_dyn],
+        n_params=n_dyn,
+        split=model.split_at(theta, n),
+    )
+    D = flow.D
+    start = np.zeros((n, m))
+    start[:, :n] = np.eye(n)
+    forcing = np.zeros((K - 1, n, m))
+    forcing[0] = D[0]  # A_0 [I 0] + [0 B_0]
+    forcing[1:, :, n:] = D[1:, :, n:]
+    kd = 2 * n - 1
+    ab = np.zeros((kd + 1, (K - 1) * n))
+    ab[0] = 1.0
+    for i in range(n):
+        for j in range(n):
+            ab[n + i - j, j : (K - 2) * n : n] = -D[1:, i, j]
+    out = np.empty((K, n, m))
+    out[0] = start
+    if K > 1:
+        sol, info = lapack.dtbtrs(ab, forcing.reshape((K - 1) * n, m), uplo="L")
+        out[1:] = sol.reshape(K - 1, n, m) if info == 0 else np.nan
+    return out
+
+
+def _measurement_derivative(measurement, x):
+    """``dS -> d(measurement)/dx . dS`` along the trajectory ``x``: the
+    matrix itself, or central differences of a callable measurement along
+    each direction (steps relative to the state's and the direction's size)."""
+    if not callable(measurement):
+        C = np.asarray(measurement, dtype=float)
+        return lambda dS: dS @ C.T
+    measure = measurement_function(measurement)
+    size_x = float(np.sqrt(np.mean(x**2))) or 1.0
+
+    def derivative(dS):
+        size = float(np.sqrt(np.mean(dS**2)))
+        if size == 0.0:
+            return np.zeros_like(measure(x))
+        e = STEP * size_x / size
+        return (measure(x + e * dS) - measure(x - e * dS)) / (2 * e)
+
+    return derivative
 
 
 def _describe(v, null):
