@@ -80,6 +80,10 @@ __all__ = ["OutputErrorFit", "OutputErrorModel"]
 #: near zero the states at the rim are undetermined and their defects stall
 #: (tanks seed 4 at 50: the right model's trajectory did not join)
 WALL_DECAY = 10.0
+#: flows that differ by at most this much relative to the states (about a
+#: thousand units in the last place) are the same map computed twice:
+#: rounding, not a change of integrator the fit could follow
+SAME_FLOW = 1e-13
 _SCORE_ELEMENTS = 1 << 22
 # Candidate sensitivities per pass of the variational equations (one flow with
 # Jacobians, the cost of a linearisation, whatever the group): 128 MB of
@@ -613,20 +617,27 @@ class OutputErrorModel:
         p = fit.theta.size
         if fit._state is None:
             return np.full(p, np.nan), np.nan
-        solver, res, (fac, _, _, E, D) = self._kkt_at(fit)
+        solver, res = fit._state
         finer = self.with_substeps(2 * self.n_substeps)._solver(
             fit.slots, fit.theta, 1, 1e-9, fit.x
         )
         d = np.zeros((solver.N - 1, 0))
         with np.errstate(all="ignore"):
             # each solver's flow in its own units, the change in the fit's
-            change = finer.flow(
-                res.x / finer.unit, d, res.theta, jacobian=False
-            ) * finer.unit / solver.unit - solver.flow(
-                res.x / solver.unit, d, res.theta, jacobian=False
+            phi = solver.flow(res.x / solver.unit, d, res.theta, jacobian=False)
+            change = (
+                finer.flow(res.x / finer.unit, d, res.theta, jacobian=False)
+                * finer.unit
+                / solver.unit
+                - phi
             )
         if not np.all(np.isfinite(change)):
             return np.full(p, np.inf), np.inf
+        if np.max(np.abs(change), initial=0.0) <= SAME_FLOW * np.max(np.abs(phi)):
+            # the two integrators agree to rounding (a step far inside RK4's
+            # accuracy): there is no change for the fit to follow
+            return np.zeros(p), 0.0
+        _, _, (fac, _, _, E, D) = self._kkt_at(fit)
         rhs = np.zeros((solver.N, 2 * solver.n))
         rhs[:-1, solver.n :] = -change
         E, D, free = self._free_border(fit, E, D)
