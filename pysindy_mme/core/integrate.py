@@ -36,6 +36,7 @@ __all__ = [
     "rk4_flow",
     "simulate",
     "simulate_guided",
+    "solve_recursion",
     "SimulationResult",
 ]
 
@@ -396,6 +397,26 @@ def simulate(
     return SimulationResult(out, diverged)
 
 
+def solve_recursion(A, forcing):
+    """``(z, info)``: ``z_1 .. z_K`` of ``z_{k+1} = A_k z_k + f_k`` from
+    ``z_0 = 0``, for ``A (K, n, n)`` and ``forcing (K, n)`` or ``(K, n, m)``
+    (``z`` has its shape; ``z[k]`` is ``z_{k+1}``). One banded
+    lower-triangular solve (LAPACK's ``dtbtrs``), linear in ``K``: the
+    linearised free run (Newton's step) and its sensitivities.
+    """
+    from scipy.linalg import lapack
+
+    K, n = A.shape[:2]
+    kd = 2 * n - 1
+    ab = np.zeros((kd + 1, K * n))
+    ab[0] = 1.0
+    for i in range(n):
+        for j in range(n):
+            ab[n + i - j, j : (K - 1) * n : n] = -A[1:, i, j]
+    z, info = lapack.dtbtrs(ab, forcing.reshape(K * n, -1), uplo="L")
+    return z.reshape(forcing.shape), info
+
+
 #: a guided free run solves its Newton iteration over blocks of intervals,
 #: each from the exact end state of the block before: over a long record the
 #: linearised recursion can amplify the guess's small defects (a limit cycle's
@@ -570,11 +591,8 @@ class _NewtonBlock:
     def solve(self, start, stop, tol, bound, max_iter) -> bool:
         """Whether the block converged (every defect at most ``tol``) and
         stayed within ``bound``."""
-        from scipy.linalg import lapack
-
-        x, n, K = self.x, self.x.shape[1], stop - start
+        x = self.x
         rows = slice(start, stop)
-        kd = 2 * n - 1
         last = np.inf
         for _ in range(max_iter):
             with np.errstate(all="ignore"):
@@ -598,15 +616,10 @@ class _NewtonBlock:
             if worst > GUIDED_BLOW_UP * last:
                 return False
             last = worst
-            ab = np.zeros((kd + 1, K * n))
-            ab[0] = 1.0
-            for i in range(n):
-                for j in range(n):
-                    ab[n + i - j, j : (K - 1) * n : n] = -A[1:, i, j]
-            step, info = lapack.dtbtrs(ab, defect.reshape(-1, 1), uplo="L")
+            step, info = solve_recursion(A, defect)
             if info != 0 or not np.all(np.isfinite(step)):
                 return False
-            x[start + 1 : stop + 1] += step.reshape(K, n)
+            x[start + 1 : stop + 1] += step
             inside = x[start + 1 : stop + 1]
             if not np.all(np.isfinite(inside)) or float(np.max(np.abs(inside))) > bound:
                 return False

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.integrate import rk4_flow, simulate_guided
+from ..core.integrate import rk4_flow, simulate_guided, solve_recursion
 from ..core.model import ParametricModel, RatesAt
 from ..protocols.runs import measurement_function
 
@@ -292,8 +292,6 @@ def _run_sensitivities(model, theta, n_dyn, x, t, inputs, substeps):
     stages differentiated, :func:`~pysindy_mme.core.integrate.rk4_flow`);
     the chain ``S_{k+1} = A_k S_k + B_k`` from ``S_0 = [I 0]`` is one
     banded lower-triangular solve for every column at once."""
-    from scipy.linalg import lapack
-
     K, n = x.shape
     m = n + n_dyn
     flow = rk4_flow(
@@ -314,17 +312,10 @@ def _run_sensitivities(model, theta, n_dyn, x, t, inputs, substeps):
     forcing = np.zeros((K - 1, n, m))
     forcing[0] = D[0]  # A_0 [I 0] + [0 B_0]
     forcing[1:, :, n:] = D[1:, :, n:]
-    kd = 2 * n - 1
-    ab = np.zeros((kd + 1, (K - 1) * n))
-    ab[0] = 1.0
-    for i in range(n):
-        for j in range(n):
-            ab[n + i - j, j : (K - 2) * n : n] = -D[1:, i, j]
     out = np.empty((K, n, m))
     out[0] = start
-    if K > 1:
-        sol, info = lapack.dtbtrs(ab, forcing.reshape((K - 1) * n, m), uplo="L")
-        out[1:] = sol.reshape(K - 1, n, m) if info == 0 else np.nan
+    chained, info = solve_recursion(D[:, :, :n], forcing)
+    out[1:] = chained if info == 0 else np.nan
     return out
 
 

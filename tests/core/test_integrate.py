@@ -26,6 +26,7 @@ from pysindy_mme.core.integrate import (
     rk4_flow,
     simulate,
     simulate_guided,
+    solve_recursion,
 )
 
 # ------------------------------------------------------------- InputSignal
@@ -485,3 +486,17 @@ def test_simulate_guided_returns_a_guess_that_is_the_run_without_derivatives():
     guided = simulate_guided(counted, x0, t, None, 2, off)
     np.testing.assert_allclose(guided.x[0], free, rtol=0, atol=1e-12)
     assert counts["calls"] > 2 * 4 * 2
+
+
+@pytest.mark.parametrize("shape", [(), (4,)])
+def test_solve_recursion_equals_the_recursion_stepped_in_a_loop(shape):
+    rng = np.random.default_rng(5)
+    K, n = 50, 3
+    A = rng.normal(0, 0.6, (K, n, n))
+    f = rng.normal(size=(K, n) + shape)
+    z, info = solve_recursion(A, f)
+    assert info == 0 and z.shape == f.shape
+    prev = np.zeros((n,) + shape)
+    for k in range(K):
+        prev = A[k] @ prev + f[k]
+        np.testing.assert_allclose(z[k], prev, rtol=1e-12, atol=1e-12)
