@@ -18,6 +18,12 @@ dynamics:
   per sample; it is used only where a simulation must be sequential
   (validation from a leading window, :meth:`ExtendedModel.simulate`-like
   checks), never inside a fit.
+* :func:`simulate_guided` - the same free run solved by Newton's method over
+  the whole record (or over blocks, each from the exact end of the one
+  before) from a guessed trajectory: a few vectorised passes; the loop of
+  :func:`simulate` only where blocks of ``GUIDED_MIN_BLOCK`` intervals fail.
+* :func:`solve_recursion` - ``z_{k+1} = A_k z_k + f_k`` by one banded solve:
+  Newton's step of a free run, and a run's sensitivities.
 """
 
 from __future__ import annotations
