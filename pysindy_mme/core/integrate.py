@@ -513,7 +513,7 @@ def simulate_guided(
         uu = None if u is None else np.broadcast_to(u, (X.shape[0], u.shape[-1]))
         return rhs(X, np.full(X.shape[0], s), uu)
 
-    if not np.all(np.isfinite(x[0])):
+    if not np.all(np.isfinite(x[0])) or N < 2:
         return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)
     if _is_the_run(rhs, x, t, inputs, substeps, split, 1e-12 * scale, bound):
         return SimulationResult(x[None], np.array([-1]))

@@ -500,3 +500,11 @@ def test_solve_recursion_equals_the_recursion_stepped_in_a_loop(shape):
     for k in range(K):
         prev = A[k] @ prev + f[k]
         np.testing.assert_allclose(z[k], prev, rtol=1e-12, atol=1e-12)
+
+
+def test_simulate_guided_of_one_sample_is_its_initial_state():
+    guided = simulate_guided(
+        _vdp, np.array([2.0, 0.0]), [0.0], None, 1, np.ones((1, 2))
+    )
+    np.testing.assert_array_equal(guided.x, [[[2.0, 0.0]]])
+    assert guided.diverged_at[0] == -1
