@@ -515,9 +515,9 @@ def simulate_guided(
 
     if not np.all(np.isfinite(x[0])) or N < 2:
         return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)
-    if _is_the_run(rhs, x, t, inputs, substeps, split, 1e-12 * scale, bound):
-        return SimulationResult(x[None], np.array([-1]))
     block = _NewtonBlock(rhs, x, t, inputs, substeps, jac_x, split)
+    if block.is_the_run(1e-12 * scale, bound):
+        return SimulationResult(x[None], np.array([-1]))
     start, size, stretch = 0, N - 1, GUIDED_MIN_BLOCK
     while start < N - 1:
         stop = min(start + size, N - 1)
@@ -553,47 +553,52 @@ def simulate_guided(
 JOINED_SAMPLE = 100
 
 
-def _is_the_run(rhs, x, t, inputs, substeps, split, tol, bound) -> bool:
-    """Whether the guess ``x`` is the free run already (a converged fit's
-    trajectory): every defect at most ``tol`` and no state beyond ``bound``.
-    Checked on ``JOINED_SAMPLE`` intervals spread over the record first (a
-    guess that is not the run fails there, at a hundredth of a pass), then
-    on all of them without derivatives: a fifth of the Newton iteration that
-    would find the same."""
-    N = x.shape[0]
-    if not np.max(np.abs(x)) < bound:
-        return False
-    stride = max(1, (N - 1) // JOINED_SAMPLE)
-    checks = [slice(0, N - 1)]
-    if stride > 1:
-        checks.insert(0, np.arange(0, N - 1, stride))
-    h = np.diff(t)
-    for rows in checks:
-        with np.errstate(all="ignore"):
-            phi = rk4_flow(
-                rhs,
-                x[:-1][rows],
-                t[:-1][rows],
-                h[rows],
-                lambda frac, rows=rows: inputs.on_intervals(frac, rows),
-                substeps,
-                split=split,
-            ).phi
-        defect = np.abs(phi - x[1:][rows])
-        if not (np.all(np.isfinite(defect)) and np.max(defect) <= tol):
-            return False
-    return True
-
-
 class _NewtonBlock:
-    """Newton's method on the free run's intervals ``start:stop`` of ``x``
-    (in place), from the exact state ``x[start]``."""
+    """A guided free run's trajectory ``x`` (changed in place): whether it is
+    the run already, and Newton's method on its intervals ``start:stop``
+    from the exact state ``x[start]``."""
 
     def __init__(self, rhs, x, t, inputs, substeps, jac_x, split):
         self.rhs, self.x, self.t = rhs, x, t
         self.h = np.diff(t)
         self.inputs, self.substeps = inputs, substeps
         self.jac_x, self.split = jac_x, split
+
+    def _flow(self, rows, jacobian: bool):
+        """The RK4 map over the intervals ``rows`` (a slice or indices) from
+        the current ``x``, with ``dPhi/dx`` if ``jacobian``."""
+        with np.errstate(all="ignore"):
+            return rk4_flow(
+                self.rhs,
+                self.x[:-1][rows],
+                self.t[:-1][rows],
+                self.h[rows],
+                lambda frac: self.inputs.on_intervals(frac, rows),
+                self.substeps,
+                jac_x=self.jac_x if jacobian else None,
+                split=self.split,
+            )
+
+    def is_the_run(self, tol, bound) -> bool:
+        """Whether ``x`` is the free run already (a converged fit's
+        trajectory): every defect at most ``tol`` and no state beyond
+        ``bound``. Checked on ``JOINED_SAMPLE`` intervals spread over the
+        record first (a guess that is not the run fails there, at a
+        hundredth of a pass), then on all of them without derivatives: a
+        fifth of the Newton iteration that would find the same."""
+        x = self.x
+        N = x.shape[0]
+        if not np.max(np.abs(x)) < bound:
+            return False
+        stride = max(1, (N - 1) // JOINED_SAMPLE)
+        checks = [slice(0, N - 1)]
+        if stride > 1:
+            checks.insert(0, np.arange(0, N - 1, stride))
+        for rows in checks:
+            defect = np.abs(self._flow(rows, jacobian=False).phi - x[1:][rows])
+            if not (np.all(np.isfinite(defect)) and np.max(defect) <= tol):
+                return False
+        return True
 
     def solve(self, start, stop, tol, bound, max_iter) -> bool:
         """Whether the block converged (every defect at most ``tol``) and
@@ -602,17 +607,7 @@ class _NewtonBlock:
         rows = slice(start, stop)
         last = np.inf
         for _ in range(max_iter):
-            with np.errstate(all="ignore"):
-                flow = rk4_flow(
-                    self.rhs,
-                    x[rows],
-                    self.t[rows],
-                    self.h[rows],
-                    lambda frac: self.inputs.on_intervals(frac, rows),
-                    self.substeps,
-                    jac_x=self.jac_x,
-                    split=self.split,
-                )
+            flow = self._flow(rows, jacobian=True)
             defect = flow.phi - x[start + 1 : stop + 1]
             A = flow.D
             if not (np.all(np.isfinite(defect)) and np.all(np.isfinite(A))):
