@@ -44,6 +44,7 @@ from scipy.linalg import lapack
 __all__ = [
     "BandedKKT",
     "KKTFactor",
+    "ReducedBorder",
     "equilibrated_inverse",
     "solve_reduced",
     "undetermined",
@@ -296,46 +297,99 @@ def equilibrated_inverse(Sc: np.ndarray, rcond: float = 1e-10):
     return inverse * scale[:, None] * scale[None, :], deficient
 
 
-def solve_reduced(fac: KKTFactor, E, D, b, c) -> ReducedSolution:
+class ReducedBorder:
+    """The border of one factor eliminated once, for many right-hand sides.
+
+    :func:`solve_reduced` solves ``[b, E]`` together: right for one
+    right-hand side. Tests of many candidates against one fit (score tests,
+    in groups) would re-solve the ``p`` columns of ``E`` for every group;
+    here ``K^-1 E`` and ``Sc`` are computed once and each group costs only
+    its own columns (and holds only them beside ``K^-1 E``).
+    """
+
+    def __init__(self, fac: KKTFactor, E, D):
+        self.fac, self.p = fac, D.shape[0]
+        rows = E.shape[0] * E.shape[1]
+        self._Ef = E.reshape(rows, self.p)
+        # K^-1 E as (p, rows) C-ordered: the Fortran columns LAPACK solves
+        self._KEt = np.empty((self.p, rows))
+        self._KEt[:] = self._Ef.T
+        if self.p:
+            fac.solve_in_place(self._KEt.T)
+        Sc = D - self._Ef.T @ self._KEt.T
+        self.Sc = 0.5 * (Sc + Sc.T)
+        self._inverse, self.rank_deficient = (
+            equilibrated_inverse(self.Sc) if self.p else (self.Sc, False)
+        )
+
+    def new_columns(self, k: int) -> np.ndarray:
+        """A zeroed ``(k, N, 2n)`` array to write ``k`` right-hand sides in
+        (column ``j`` is ``out[j]``), for :meth:`solve_columns`."""
+        return np.zeros((k, self.fac.N, 2 * self.fac.n))
+
+    def solve_columns(self, cols: np.ndarray, c) -> np.ndarray:
+        """Overwrite ``cols`` (from :meth:`new_columns`) with the states'
+        part ``z`` of the bordered solution; returns ``dtheta (p, k)``."""
+        k = cols.shape[0]
+        flat = cols.reshape(k, -1)
+        self.fac.solve_in_place(flat.T)
+        if not self.p:
+            return np.zeros((0, k))
+        dtheta = self._inverse @ (np.asarray(c, float) - self._Ef.T @ flat.T)
+        flat -= dtheta.T @ self._KEt
+        return dtheta
+
+
+def solve_reduced(fac: KKTFactor, E, D, b, c, rows=None) -> ReducedSolution:
     """Solve the bordered system for ``b (N, 2n[, k])`` and ``c (p[, k])``.
 
-    ``E`` has shape ``(N, 2n, p)``, ``D`` ``(p, p)``.
+    ``E`` has shape ``(N, 2n, p)``, ``D`` ``(p, p)``. ``rows`` (a slice of
+    the samples) returns only those samples of ``z``: the covariance of the
+    initial state needs sample 0 of ``n`` solutions, not ``n`` copies of the
+    record.
     """
     p = D.shape[0]
     if p == 0:
         z = fac.solve(b)
+        if rows is not None:
+            z = z[rows].copy()
         return ReducedSolution(z, np.zeros((0,) + b.shape[2:]), D, False)
     multi = b.ndim == 3
     bb = b if multi else b[:, :, None]
     cc = c if multi else c[:, None]
     k = bb.shape[2]
-    rows = bb.shape[0] * bb.shape[1]
+    rows_all = bb.shape[0] * bb.shape[1]
     # [b, E] as the Fortran columns LAPACK solves in place (its transpose
     # in C order): one array, not a concatenation, its copy and the copy of
-    # the answer
-    work = np.empty((k + p, rows))
-    work[:k] = bb.reshape(rows, k).T
-    work[k:] = E.reshape(rows, p).T
-    sol = fac.solve_in_place(work.T)
+    # the answer. The answer is read where it is: the transposes below are
+    # views, and BLAS multiplies them as they lie (no C-ordered copies of
+    # k + p columns of the record beside it: at the peak of a study that
+    # was 192 bytes per sample of two states).
+    work = np.empty((k + p, rows_all))
+    work[:k] = bb.reshape(rows_all, k).T
+    work[k:] = E.reshape(rows_all, p).T
+    fac.solve_in_place(work.T)
+    Kbt, KEt = work[:k], work[k:]  # (k, rows) and (p, rows): K^-1 b, K^-1 E
     Ef = E.reshape(-1, p)
-    # C-ordered copies of the answer's columns: the products below are those
-    # of the C-ordered answer, to the last bit; then the Fortran-ordered
-    # answer goes (it is (k + p) columns of the record: at the peak of a
-    # study, 192 bytes per sample of two states, alive beside z otherwise)
-    # (copies: one column of it is C-contiguous already, and a view would
-    # keep the whole answer alive)
-    Kb, KE = np.array(sol[:, :k], order="C"), np.array(sol[:, k:], order="C")
-    del sol, work
-    Sc = D - Ef.T @ KE
+    Sc = D - Ef.T @ KEt.T
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
-    dtheta = inverse @ (cc - Ef.T @ Kb)
-    # z = Kb - KE dtheta, the products summed over the parameters in order
-    # (what einsum did on the C-ordered answer, to the last bit)
-    KEd = KE[:, :1] * dtheta[0]
-    for j in range(1, p):
-        KEd += KE[:, j : j + 1] * dtheta[j]
-    z = np.subtract(Kb, KEd, order="C").reshape(bb.shape)
+    dtheta = inverse @ (cc - Ef.T @ Kbt.T)
+    # z = K^-1 b - K^-1 E dtheta, in place in the answer's first k rows
+    if rows is None:
+        Kbt -= dtheta.T @ KEt
+        # a copy, even where the transpose is contiguous already (k = 1):
+        # a view would keep the whole answer alive
+        z = np.array(Kbt.T, order="C").reshape(bb.shape)
+    else:
+        per = bb.shape[1]
+        sl = range(bb.shape[0])[rows]
+        cols = slice(sl.start * per, sl.stop * per) if sl.step == 1 else None
+        if cols is None:  # pragma: no cover - a bug, not a user error
+            raise ValueError("rows must be a contiguous slice")
+        zt = Kbt[:, cols] - dtheta.T @ KEt[:, cols]
+        z = np.array(zt.T, order="C").reshape((len(sl),) + bb.shape[1:])
+    del work, Kbt, KEt
     if not multi:
-        z, dtheta = z[:, :, 0], dtheta[:, 0]
+        z, dtheta = z[..., 0], dtheta[:, 0]
     return ReducedSolution(z, dtheta, Sc, deficient)

@@ -63,7 +63,7 @@ from ..core.integrate import InputSignal
 from ..core.model import AsBase, ParametricModel, RatesAt
 from ..core.relaxation import Overflows, overflow_columns_of
 from ..exceptions import DivergenceError
-from .kkt import equilibrated_inverse, solve_reduced, undetermined
+from .kkt import ReducedBorder, equilibrated_inverse, solve_reduced, undetermined
 from .statistics import residual_inflation
 from .transcription import MMESmoother
 
@@ -699,7 +699,7 @@ class OutputErrorModel:
         b = np.zeros((solver.N, 2 * n, n))
         b[0, :n, :] = np.eye(n)
         E, D, free = self._free_border(fit, E, D)
-        sol = solve_reduced(fac, E, D, b, np.zeros((E.shape[2], n)))
+        sol = solve_reduced(fac, E, D, b, np.zeros((E.shape[2], n)), rows=slice(0, 1))
         s2 = fit.residual_variance * fit.inflation
         x0_cov = sol.z[0, :n, :] * s2 * np.outer(unit, unit)  # to user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
@@ -748,6 +748,11 @@ class OutputErrorModel:
         num = np.zeros(k_c)
         den = np.zeros(k_c)
         scale = np.ones(k_c)
+        # K^-1 E and the reduced Hessian once for all groups: each group's
+        # banded solve is then its own columns only
+        border = ReducedBorder(fac, E, D)
+        del E
+        H = lin.H
         for lo_f in range(0, k_c, flow_group):
             # one pass of the variational equations for many candidates (the
             # pass costs a linearisation whatever their number), then the
@@ -761,7 +766,7 @@ class OutputErrorModel:
                 lo = lo_f + lo_g
                 sens = sens_f[:, :, lo_g : lo_g + group]
                 finite = finite_f[lo_g : lo_g + group]
-                part = range(sens.shape[2])
+                g = sens.shape[2]
                 # Each candidate's forcing at unit size: the unit of a
                 # coefficient (of y^3 in metres or in millimetres) is the user's
                 # choice, and the test below of a response lost to rounding must
@@ -770,24 +775,26 @@ class OutputErrorModel:
                 with np.errstate(all="ignore"):
                     size = np.sqrt(np.mean(sens**2, axis=(0, 1)))
                 size = np.where(np.isfinite(size) & (size > 0), size, 1.0)
-                scale[lo : lo + len(part)] = size
-                rhs = np.zeros((N, 2 * n, len(part)))
-                rhs[:-1, n:] = -sens / size
-                sol = solve_reduced(fac, E, D, rhs, np.zeros((E.shape[2], len(part))))
-                dx = sol.z[:, :n]  # (N, n, G)
-                H = lin.H
+                scale[lo : lo + g] = size
+                # the forcing written straight into the solve's columns
+                cols = border.new_columns(g)
+                cols[:, :-1, n:] = np.moveaxis(sens, 2, 0) / size[:, None, None]
+                cols[:, :-1, n:] *= -1.0
+                dtheta = border.solve_columns(cols, np.zeros((D.shape[0], g)))
+                dx = cols[:, :, :n]  # (G, N, n)
                 dy = (
-                    np.einsum("ai,kig->kag", H, dx)
+                    np.einsum("ai,gki->gka", H, dx)
                     if H.ndim == 2
-                    else (np.einsum("kai,kig->kag", H, dx))
+                    else np.einsum("kai,gki->gka", H, dx)
                 )
+                del cols, dx
                 if M.shape[1]:
-                    dy = dy + np.einsum("ap,pg->ag", M, sol.dtheta)[None]
-                Rdy = np.einsum("kab,kbg->kag", solver.Rinv, dy)
-                num[lo : lo + len(part)] = np.einsum("kag,ka->g", Rdy, lin.r)
-                den[lo : lo + len(part)] = np.einsum("kag,kag->g", Rdy, dy)
+                    dy = dy + np.einsum("ap,pg->ga", M, dtheta)[:, None, :]
+                Rdy = np.einsum("kab,gkb->gka", solver.Rinv, dy)
+                num[lo : lo + g] = np.einsum("gka,ka->g", Rdy, lin.r)
+                den[lo : lo + g] = np.einsum("gka,gka->g", Rdy, dy)
                 # a term not finite along the trajectory cannot be scored
-                num[lo : lo + len(part)][~finite] = np.nan
+                num[lo : lo + g][~finite] = np.nan
         ssr = fit.cost
         # raw residual degrees of freedom, the statistic corrected for
         # correlated residuals (OutputErrorFit.inflation)

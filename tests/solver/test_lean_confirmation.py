@@ -194,43 +194,99 @@ def test_a_kkt_step_holds_only_the_current_linearization(record, monkeypatch):
     assert max(alive) == 1
 
 
-def test_the_reduced_solve_frees_the_solved_columns_before_the_states(monkeypatch):
-    # solve_reduced solves [b, E] in one Fortran-ordered array of (k + p)
-    # columns of the record; only C-ordered copies of its columns are kept
-    # afterwards (one column of it is C-contiguous: a "copy" by
-    # np.ascontiguousarray would be a view that keeps the whole array alive)
-    import weakref
+def _dense_kkt(Q, A, S=None):
+    """The KKT matrix of kkt.py's docstring, written out densely."""
+    N, n = Q.shape[0], Q.shape[1]
+    m = 2 * n
+    K = np.zeros((N * m, N * m))
+    for k in range(N):
+        x, lam = slice(k * m, k * m + n), slice(k * m + n, (k + 1) * m)
+        K[x, x] = Q[k]
+        if k == N - 1:
+            K[lam, lam] = np.eye(n)  # the last block's dummy multiplier
+            continue
+        x_next = slice((k + 1) * m, (k + 1) * m + n)
+        K[x, lam] = A[k].T
+        K[lam, x] = A[k]
+        K[lam, x_next] = -np.eye(n)
+        K[x_next, lam] = -np.eye(n)  # -lam_k in x_{k+1}'s row
+        if S is not None:
+            K[lam, lam] = -S[k]
+    return K
 
-    N, n, p = 200, 2, 3
-    Q, A = _blocks(N, n, 6)
-    rng = np.random.default_rng(7)
+
+def _bordered(N, n, p, seed):
+    Q, A = _blocks(N, n, seed)
+    rng = np.random.default_rng(seed + 100)
+    G = 0.3 * rng.standard_normal((N - 1, n, n))
+    S = G @ np.swapaxes(G, 1, 2)
     E = rng.standard_normal((N, 2 * n, p))
     D = np.eye(p) * 1e3 + E.reshape(-1, p).T @ E.reshape(-1, p)
-    b, c = rng.standard_normal((N, 2 * n)), rng.standard_normal(p)
-    fac = BandedKKT(N, n).factor(Q, A, None)
-    expected = kkt.solve_reduced(fac, E, D, b, c)
-    solved = []
-    solve_in_place = kkt.KKTFactor.solve_in_place
-    inverse = kkt.equilibrated_inverse
+    return Q, A, S, E, D
 
-    def keep_ref(self, cols):
-        out = solve_in_place(self, cols)
-        solved.append(weakref.ref(out))
-        return out
 
-    freed = []
-
-    def check(Sc):
-        freed.append(solved[-1]() is None)
-        return inverse(Sc)
-
-    monkeypatch.setattr(kkt.KKTFactor, "solve_in_place", keep_ref)
-    monkeypatch.setattr(kkt, "equilibrated_inverse", check)
+@pytest.mark.parametrize("k", [None, 1, 3])
+def test_the_reduced_solve_against_the_dense_bordered_system(k):
+    # an independent reference: the bordered matrix [[K, E], [E^T, D]]
+    # written out densely from the docstring's rows and solved by LU
+    N, n, p = 40, 2, 3
+    Q, A, S, E, D = _bordered(N, n, p, 5)
+    rng = np.random.default_rng(6)
+    shape = () if k is None else (k,)
+    b = rng.standard_normal((N, 2 * n) + shape)
+    c = rng.standard_normal((p,) + shape)
+    Ef = E.reshape(-1, p)
+    big = np.block([[_dense_kkt(Q, A, S), Ef], [Ef.T, D]])
+    rhs = np.concatenate([b.reshape(N * 2 * n, -1), c.reshape(p, -1)])
+    ref = np.linalg.solve(big, rhs)
+    fac = BandedKKT(N, n).factor(Q, A, S)
     got = kkt.solve_reduced(fac, E, D, b, c)
-    assert freed == [True]
-    # the same answer, to the last bit
-    np.testing.assert_array_equal(got.z, expected.z)
-    np.testing.assert_array_equal(got.dtheta, expected.dtheta)
+    np.testing.assert_allclose(got.z.reshape(N * 2 * n, -1), ref[:-p], atol=1e-10)
+    np.testing.assert_allclose(got.dtheta.reshape(p, -1), ref[-p:], atol=1e-10)
+    # Sc is the reduced Hessian: D - E^T K^-1 E
+    Sc = D - Ef.T @ np.linalg.solve(_dense_kkt(Q, A, S), Ef)
+    np.testing.assert_allclose(got.Sc, Sc, rtol=1e-10)
+    # only some samples of z: the same numbers
+    part = kkt.solve_reduced(fac, E, D, b, c, rows=slice(3, 7))
+    np.testing.assert_allclose(part.z, got.z[3:7], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(part.dtheta, got.dtheta)
+    # the border eliminated once, the right-hand sides solved by columns
+    border = kkt.ReducedBorder(fac, E, D)
+    np.testing.assert_allclose(border.Sc, Sc, rtol=1e-10)
+    cols = border.new_columns(1 if k is None else k)
+    cols[:] = np.moveaxis(b.reshape(N, 2 * n, -1), 2, 0)
+    dtheta = border.solve_columns(cols, c.reshape(p, -1))
+    z = np.moveaxis(cols, 0, 2).reshape(N * 2 * n, -1)
+    np.testing.assert_allclose(z, ref[:-p], atol=1e-10)
+    np.testing.assert_allclose(dtheta, ref[-p:], atol=1e-10)
+
+
+def test_the_reduced_solve_keeps_no_copy_of_the_solved_columns():
+    # solve_reduced solves [b, E] in one Fortran-ordered array of (k + p)
+    # columns of the record and reads the answer where it lies: its peak
+    # is that array and the states (it made C-ordered copies of all k + p
+    # columns beside it: 8 columns at the peak for k = 1, p = 3, 10 for the
+    # initial state's covariance, k = n = 2). The returned states own their
+    # memory: a view of one column would keep all k + p alive.
+    import tracemalloc
+
+    N, n, p = 20_000, 2, 3
+    Q, A, S, E, D = _bordered(N, n, p, 8)
+    column = N * 2 * n * 8
+    fac = BandedKKT(N, n).factor(Q, A, S)
+    for k, rows, allowed in [(1, None, 4 + 1 + 1), (2, slice(0, 1), 5)]:
+        b = np.zeros((N, 2 * n, k))
+        b[0, :n, :] = np.eye(n)[:, :k]
+        c = np.zeros((p, k))
+        tracemalloc.start()
+        try:
+            base = tracemalloc.get_traced_memory()[0]
+            sol = kkt.solve_reduced(fac, E, D, b, c, rows=rows)
+            peak = tracemalloc.get_traced_memory()[1] - base
+        finally:
+            tracemalloc.stop()
+        assert peak <= (allowed + 0.2) * column, (k, peak / column)
+        assert sol.z.base is None or sol.z.base.size == sol.z.size
 
 
 class _CountedFeatures:
