@@ -191,6 +191,7 @@ def rk4_flow(
     jac_p=None,
     n_params: int = 0,
     split=None,
+    state_columns: bool = True,
 ):
     """Classical RK4 over ``K`` independent intervals at once.
 
@@ -215,6 +216,13 @@ def rk4_flow(
         ``X`` (and ``D``, None without ``jac_x``) by ``h`` ``(K, 1)``. Each
         step is Strang-split: half a step of it, the RK4 step of ``rhs``,
         half a step of it.
+    state_columns : bool
+        False: ``D`` holds the parameters' columns only (``(K, n, p)``, no
+        ``dPhi/dx``). Each column of ``D`` is propagated on its own through
+        the stages' Jacobians, so the parameters' columns are the same
+        numbers either way; a pass that needs only them (the score tests'
+        candidate terms) then carries ``n`` columns fewer. Not with
+        ``split`` (its columns are placed after the states').
 
     Returns
     -------
@@ -229,14 +237,18 @@ def rk4_flow(
     hs = (np.asarray(h, dtype=float) / substeps)[:, None]
     hs3 = hs[:, :, None]
     D = None
+    first = n if state_columns else 0  # the parameters' first column of D
+    if not state_columns and split is not None:
+        raise ValueError("state_columns=False cannot be used with split")
     if jac_x is not None:
-        D = np.zeros((K, n, n + p))
-        D[:, :, :n] = np.eye(n)
+        D = np.zeros((K, n, first + p))
+        if first:
+            D[:, :, :first] = np.eye(n)
 
     def derivative(Xs, s, us, Dpre):
         dk = _small_matmul(jac_x(Xs, s, us), Dpre)
         if p:
-            dk[:, :, n:] += jac_p(Xs, s, us)
+            dk[:, :, first:] += jac_p(Xs, s, us)
         return dk
 
     t0 = np.asarray(t0, dtype=float)

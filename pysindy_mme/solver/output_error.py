@@ -832,8 +832,13 @@ class OutputErrorModel:
         x_int = res.x / unit
         d = np.zeros((solver.N - 1, 0))
         with np.errstate(all="ignore"):
-            *_, sens = solver.flow(
-                x_int, d, res.theta, jacobian=True, extra=(len(candidates), forcing)
+            _, sens = solver.flow(
+                x_int,
+                d,
+                res.theta,
+                jacobian=True,
+                extra=(len(candidates), forcing),
+                only_extra=True,
             )
         finite = np.all(np.isfinite(sens), axis=(0, 1))
         sens[:, :, ~finite] = 0.0

@@ -496,7 +496,9 @@ class MMESmoother(GaussNewton):
         return self._scale
 
     # ------------------------------------------------------------- dynamics
-    def flow(self, x, d, theta=None, jacobian: bool = True, extra=None):
+    def flow(
+        self, x, d, theta=None, jacobian: bool = True, extra=None, only_extra=False
+    ):
         """``Phi_k(x_k, d_k; theta)`` for all intervals (internal units).
 
         With ``jacobian``, also ``A_k = dPhi/dx``, ``G_k = dPhi/dd``,
@@ -505,20 +507,26 @@ class MMESmoother(GaussNewton):
         n_extra)`` is the derivative of the right-hand side with respect to
         parameters that are not in the model (at zero); their sensitivities
         are returned as a fourth array (score tests of candidate terms).
+        ``only_extra``: return ``(phi, X)`` only; the flow then carries the
+        extra columns alone (not ``A``, ``G``, ``B``: the same numbers for
+        ``X``, in fewer passes), except with overflow terms, whose split
+        needs them all.
         """
         theta = self.theta_init if theta is None else theta
         n, q, p = self.n, self.q, self.p
         n_extra = 0 if extra is None else extra[0]
         K = self.N - 1
-        phi = np.empty((K, n))
-        A = np.empty((K, n, n)) if jacobian else None
-        G = np.empty((K, n, q)) if jacobian else None
-        B = np.empty((K, n, p)) if jacobian else None
-        X = np.empty((K, n, n_extra)) if n_extra else None
         f = self._f
         # overflow terms, solved exactly around each RK4 step; theta's first
         # entry is column n + q of the flow's derivatives
         split = f.split_at(theta, n + q)
+        lean = bool(only_extra and n_extra and jacobian and split is None)
+        full = jacobian and not lean
+        phi = np.empty((K, n))
+        A = np.empty((K, n, n)) if full else None
+        G = np.empty((K, n, q)) if full else None
+        B = np.empty((K, n, p)) if full else None
+        X = np.empty((K, n, n_extra)) if n_extra else None
         for lo in range(0, K, self._CHUNK):
             sl = slice(lo, min(lo + self._CHUNK, K))
             Ed = d[sl] @ self._E.T
@@ -528,6 +536,8 @@ class MMESmoother(GaussNewton):
                 return f(z, s, u, theta) + Ed
 
             def jac_p(z, s, u, k_sl=k_sl):
+                if lean:
+                    return extra[1](z, s, u)
                 if not (p or n_extra):
                     return self._E  # d enters additively: dF/dd = E
                 parts = [np.broadcast_to(self._E, (k_sl, n, q))]
@@ -548,11 +558,14 @@ class MMESmoother(GaussNewton):
                 if jacobian
                 else None,
                 jac_p=jac_p,
-                n_params=q + p + n_extra,
+                n_params=n_extra if lean else q + p + n_extra,
                 split=split,
+                state_columns=not lean,
             )
             phi[sl] = out.phi
-            if jacobian:
+            if lean:
+                X[sl] = out.D
+            elif jacobian:
                 A[sl] = out.D[:, :, :n]
                 G[sl] = out.D[:, :, n : n + q]
                 B[sl] = out.D[:, :, n + q : n + q + p]
@@ -562,12 +575,14 @@ class MMESmoother(GaussNewton):
             # no dynamics link across a break: no defect, no sensitivities
             kb = self.breaks
             phi[kb] = x[kb + 1]
-            if jacobian:
+            if full:
                 A[kb] = G[kb] = B[kb] = 0.0
-                if n_extra:
-                    X[kb] = 0.0
+            if jacobian and n_extra:
+                X[kb] = 0.0
         if not jacobian:
             return phi
+        if only_extra and n_extra:
+            return phi, X
         return (phi, A, G, B, X) if n_extra else (phi, A, G, B)
 
     def _check_flow(self, phi, x):

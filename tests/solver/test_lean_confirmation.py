@@ -339,3 +339,33 @@ def test_a_linearization_evaluates_the_library_once_per_stage(record, monkeypatc
     assert features.calls == 8 * solver.n_substeps
     for name in ("A", "B", "defects", "r"):
         np.testing.assert_array_equal(getattr(lin, name), getattr(again, name))
+
+
+@pytest.mark.parametrize("substeps", [1, 3])
+def test_the_candidates_flow_without_state_columns_gives_the_same_sensitivities(
+    record, substeps
+):
+    # each column of the flow's derivatives is propagated on its own through
+    # the stages' Jacobians: the candidates' columns alone (the score tests'
+    # pass) are the very numbers of the pass that carries A and B beside them
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    solver = engine._solver(slots, np.array([-1.0, 1.0, -1.0]), 1, 1e-9)
+    solver.n_substeps = substeps
+    x = data.x / solver.unit
+    d = np.zeros((solver.N - 1, 0))
+    cols = [0, 3, 9]
+
+    def forcing(z, s, u):
+        phi = _features(solver.unit * z, cols)
+        out = np.zeros((z.shape[0], 2, 3))
+        out[:, 1, :] = phi
+        out[:, 0, 2] = phi[:, 1]
+        return out / solver.unit[:, None]
+
+    theta = np.array([-1.0, 1.0, -1.0])
+    phi, A, G, B, full = solver.flow(x, d, theta, extra=(3, forcing))
+    phi_lean, lean = solver.flow(x, d, theta, extra=(3, forcing), only_extra=True)
+    np.testing.assert_array_equal(lean, full)
+    np.testing.assert_array_equal(phi_lean, phi)
+    assert np.abs(lean).max() > 0
