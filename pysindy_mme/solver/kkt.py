@@ -45,7 +45,10 @@ __all__ = [
     "BandedKKT",
     "KKTFactor",
     "ReducedBorder",
+    "drop_kept_factor",
     "equilibrated_inverse",
+    "keep_factor",
+    "kept_factor",
     "solve_reduced",
     "undetermined",
 ]
@@ -67,6 +70,60 @@ _IDLE_MAX = 1
 _IDLE_LOCK = threading.Lock()
 
 
+# One factor kept after its solve for the statistics that follow at the same
+# linearisation (a fit's last Gauss-Newton step, then its covariance and its
+# score tests factorise the same matrix). It holds the band only until any
+# factorisation wants one (_take_band drops it first), so it never puts a
+# second band beside the one in use.
+_KEPT: list = []
+_KEPT_LOCK = threading.Lock()
+
+
+def keep_factor(key, fac) -> None:
+    """Keep ``fac`` for :func:`kept_factor` with the same ``key``.
+
+    ``key`` is a tuple of the objects the matrix was built from (held by
+    weak reference: a key whose objects died matches nothing) and
+    hashable values (compared by ``==``).
+    """
+    refs = tuple(weakref.ref(k) if _weakrefable(k) else ("value", k) for k in key)
+    with _KEPT_LOCK:
+        _KEPT[:] = [(refs, fac)]
+
+
+def kept_factor(key):
+    """The factor kept under ``key`` (see :func:`keep_factor`), or None."""
+    with _KEPT_LOCK:
+        if not _KEPT:
+            return None
+        refs, fac = _KEPT[0]
+    if len(refs) != len(key):
+        return None
+    for ref, k in zip(refs, key):
+        if isinstance(ref, tuple):
+            if not (_weakrefable(k) is False and ref[1] == k):
+                return None
+        elif ref() is not k:
+            return None
+    return fac
+
+
+def drop_kept_factor() -> None:
+    """Forget the kept factor (its band goes back to the pool)."""
+    with _KEPT_LOCK:
+        dropped = list(_KEPT)
+        _KEPT.clear()
+    del dropped  # the factor dies here, outside the lock (_give_back locks)
+
+
+def _weakrefable(obj) -> bool:
+    try:
+        weakref.ref(obj)
+    except TypeError:
+        return False
+    return True
+
+
 def _take_band(shape) -> np.ndarray:
     """A band buffer of ``shape`` to factorise in: a view of the smallest idle
     buffer that holds it, or a new one.
@@ -77,6 +134,7 @@ def _take_band(shape) -> np.ndarray:
     one is allocated: they would only sit next to it.
     """
     size = int(np.prod(shape))
+    drop_kept_factor()  # its band serves the new factor
     with _IDLE_LOCK:
         fits = [k for k, b in enumerate(_IDLE) if b.size >= size]
         if fits:

@@ -83,7 +83,14 @@ from ..core.integrate import InputSignal, rk4_flow
 from ..core.jacobian import rowwise_jacobian
 from ..exceptions import DivergenceError
 from .gauss_newton import GaussNewton
-from .kkt import CHUNK, BandedKKT, equilibrated_inverse, solve_reduced
+from .kkt import (
+    CHUNK,
+    BandedKKT,
+    equilibrated_inverse,
+    keep_factor,
+    kept_factor,
+    solve_reduced,
+)
 from .observability import unobservable_directions
 from .records import Linearization, SmootherResult
 from .units import Dynamics, channel_units, internal_unit, state_units
@@ -713,7 +720,14 @@ class MMESmoother(GaussNewton):
         if self.q:
             GW = lin.G @ Winv  # (N-1, n, q)
             S = (GW @ np.swapaxes(lin.G, 1, 2)) / self._h_div[:, None, None]
-        fac = self._kkt.factor(Q, lin.A, S)
+        # the matrix depends on the linearisation's A (G, H) and on W only:
+        # a fit's statistics at its last step's linearisation (the result
+        # keeps its A) reuse that step's factor while no other was made
+        key = (self, lin.A, lin.G, lin.H, W.tobytes() if W is not None else b"")
+        fac = kept_factor(key)
+        if fac is None:
+            fac = self._kkt.factor(Q, lin.A, S)
+            keep_factor(key, fac)
         E = np.zeros((N, 2 * n, p))
         D = np.zeros((p, p))
         if p:

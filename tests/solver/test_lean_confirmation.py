@@ -369,3 +369,54 @@ def test_the_candidates_flow_without_state_columns_gives_the_same_sensitivities(
     np.testing.assert_array_equal(lean, full)
     np.testing.assert_array_equal(phi_lean, phi)
     assert np.abs(lean).max() > 0
+
+
+def test_a_fits_statistics_reuse_its_last_steps_factor(record, monkeypatch):
+    # the covariance and the score tests of a converged fit factorise the
+    # matrix of its last Gauss-Newton step: kept, that factor serves them
+    # (the same numbers as a fresh factorisation), until any other
+    # factorisation wants a band
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    fit = engine.fit(slots, np.array([-1.0, 1.0, -1.0]), data.x, tol=1e-9)
+    assert fit.converged
+    calls = []
+    factor = BandedKKT.factor
+
+    def counting(self, Q, A, S):
+        calls.append(A.shape[0])
+        return factor(self, Q, A, S)
+
+    monkeypatch.setattr(BandedKKT, "factor", counting)
+    cov = fit.covariance.copy()
+    pool = [(1, c) for c in (0, 3, 9)]
+    scores = engine.scores(fit, pool)
+    assert calls == []
+    # the same numbers from a fresh factorisation
+    kkt.drop_kept_factor()
+    fit._cov = None
+    np.testing.assert_array_equal(fit.covariance, cov)
+    np.testing.assert_array_equal(engine.scores(fit, pool)[0], scores[0])
+    # once dropped, the covariance factorises again and keeps its factor for
+    # the score tests
+    assert calls == [data.t.size - 1]  # A: one block per interval
+
+
+def test_a_kept_factor_gives_its_band_to_the_next_factorisation():
+    N, n = 300, 2
+    Q, A = _blocks(N, n, 0)
+    Q2, A2 = _blocks(N, n, 1)
+    kkt._IDLE.clear()
+    kkt.drop_kept_factor()
+    key = (A, "test")
+    first = BandedKKT(N, n).factor(Q, A, None)
+    band = first.lu.base if first.lu.base is not None else first.lu
+    kkt.keep_factor(key, first)
+    del first
+    assert kkt.kept_factor(key) is not None
+    assert kkt.kept_factor((A2, "test")) is None  # another matrix
+    assert kkt.kept_factor((A, "other")) is None
+    second = BandedKKT(N, n).factor(Q2, A2, None)
+    assert kkt.kept_factor(key) is None  # dropped for the new factor...
+    assert np.shares_memory(second.lu, band)  # ...which took its band
+    assert not kkt._IDLE
