@@ -101,7 +101,8 @@ def kept_factor(key):
         return None
     for ref, k in zip(refs, key):
         if isinstance(ref, tuple):
-            if not (_weakrefable(k) is False and ref[1] == k):
+            # a value: k must be a value too, and equal
+            if _weakrefable(k) or ref[1] != k:
                 return None
         elif ref() is not k:
             return None
