@@ -84,42 +84,49 @@ class GaussNewton:
                 converged = True
                 message = "converged"
                 break
-            alpha, accepted = 1.0, False
-            for _ in range(40):
-                xt, dt_ = x + alpha * dx, d + alpha * dd
-                tht = theta + alpha * dth
-                if active is not None:
-                    tht = self._on_box(tht, active if alpha == 1.0 else None)
-                with np.errstate(all="ignore"):
-                    phi_t = self.flow(xt, dt_, tht, jacobian=False)
-                    meas_t = self.measurement_cost(
-                        self.residuals(xt, tht)
-                    ) + self.prior_cost(xt)
-                    merit = (
-                        meas_t
-                        + self.model_error_cost(dt_, W)
-                        + mu * float(np.abs(phi_t - xt[1:]).sum())
-                    )
-                if not np.isfinite(merit):
-                    nonfinite += 1  # this trial step made the model blow up
-                if np.isfinite(merit) and merit <= phi0 + 1e-4 * alpha * slope:
-                    accepted = True
+            start, unlinearisable = 1.0, None
+            while True:
+                alpha, trial, merit, bad = self._line_search(
+                    x, d, theta, (dx, dd, dth), active, W, mu, phi0, slope, start
+                )
+                nonfinite += bad
+                if trial is None:
                     break
-                alpha *= 0.5
-            if not accepted:
+                # Damped steps that no longer lower the merit measurably (an
+                # inexact finite-difference Jacobian of the user's model
+                # limits how far Gauss-Newton can go): stationary for all
+                # purposes.
+                floor = max(self.tol * phi0, STALL_DECREASE)
+                stalled = alpha < 1 and phi0 - merit <= floor
+                if stall + stalled >= 2:
+                    break
+                try:
+                    new_lin = self.linearize(*trial)
+                except DivergenceError as exc:
+                    # The merit went down, but the model cannot be linearised
+                    # at the new point (a square-root outflow whose RK4 stage
+                    # lands just above an empty tank amplifies a perturbation
+                    # a million-fold): a shorter step along the same
+                    # direction, as for a step whose merit did not go down.
+                    unlinearisable = exc
+                    start = alpha / 2
+                    if start < 2.0**-40:
+                        raise
+                    continue
+                break
+            if trial is None:
+                if unlinearisable is not None:
+                    raise unlinearisable
                 message = "line search failed to decrease the merit function"
                 break
-            x, d, theta = xt, dt_, tht
-            # Damped steps that no longer lower the merit measurably (an
-            # inexact finite-difference Jacobian of the user's model limits
-            # how far Gauss-Newton can go): stationary for all purposes.
-            floor = max(self.tol * phi0, STALL_DECREASE)
-            stall = stall + 1 if alpha < 1 and phi0 - merit <= floor else 0
+            x, d, theta = trial
+            stall = stall + 1 if stalled else 0
             if stall >= 2:
                 converged = True
                 message = "converged (the merit function stopped decreasing)"
                 break
-            previous, lin = lin, self.linearize(x, d, theta)
+            previous, lin = lin, new_lin
+            del new_lin
             meas = self.measurement_cost(lin.r) + self.prior_cost(x)
             linear = alpha == 1.0 and self._same_quadratic_model(previous, lin)
             # the old linearisation (its A, B, defects and residuals: 136
@@ -138,6 +145,34 @@ class GaussNewton:
         )
         res.nonfinite_trials = nonfinite
         return res
+
+    def _line_search(self, x, d, theta, step, active, W, mu, phi0, slope, alpha):
+        """Halve ``alpha`` from its start until the l1 merit decreases enough
+        (Armijo): ``(alpha, (x, d, theta) or None, merit, trials that made
+        the model blow up)``."""
+        dx, dd, dth = step
+        nonfinite = 0
+        for _ in range(40):
+            xt, dt_ = x + alpha * dx, d + alpha * dd
+            tht = theta + alpha * dth
+            if active is not None:
+                tht = self._on_box(tht, active if alpha == 1.0 else None)
+            with np.errstate(all="ignore"):
+                phi_t = self.flow(xt, dt_, tht, jacobian=False)
+                meas_t = self.measurement_cost(
+                    self.residuals(xt, tht)
+                ) + self.prior_cost(xt)
+                merit = (
+                    meas_t
+                    + self.model_error_cost(dt_, W)
+                    + mu * float(np.abs(phi_t - xt[1:]).sum())
+                )
+            if not np.isfinite(merit):
+                nonfinite += 1  # this trial step made the model blow up
+            elif merit <= phi0 + 1e-4 * alpha * slope:
+                return alpha, (xt, dt_, tht), merit, nonfinite
+            alpha *= 0.5
+        return alpha, None, np.nan, nonfinite
 
     def _on_box(self, theta, active):
         """``theta`` clipped into the bounds (rounding only, see the module
