@@ -43,8 +43,10 @@ from scipy.linalg import lapack
 
 __all__ = [
     "BandedKKT",
+    "Border",
     "KKTFactor",
     "ReducedBorder",
+    "as_border",
     "drop_kept_factor",
     "equilibrated_inverse",
     "keep_factor",
@@ -356,6 +358,95 @@ def equilibrated_inverse(Sc: np.ndarray, rcond: float = 1e-10):
     return inverse * scale[:, None] * scale[None, :], deficient
 
 
+class Border:
+    """The parameters' columns ``E`` of the bordered KKT matrix, by blocks.
+
+    ``E`` is ``(N, 2n, p)``: ``H_k^T R_k^-1 M`` in the ``x_k`` rows (``Ex``,
+    None where it is zero: no measurement offsets) and ``B_k = dPhi_k /
+    dtheta`` in the ``lam_k`` rows (the last sample's are zero). Kept as
+    these blocks, ``E`` costs nothing beside the linearisation that holds
+    ``B`` (written out it was 96 bytes per sample of two states with three
+    parameters, half of them zeros, at every KKT step and statistic of a
+    long record's fit).
+    """
+
+    def __init__(self, Ex, B, N: int, n: int, p: int):
+        self.Ex, self.B = Ex, B
+        self.N, self.n, self.p = N, n, p
+
+    @property
+    def shape(self):
+        return (self.N, 2 * self.n, self.p)
+
+    def write_transposed(self, out) -> None:
+        """``out[j] = E[:, :, j]`` for ``out (p, N, 2n)``."""
+        n = self.n
+        if self.Ex is None:
+            out[:, :, :n] = 0.0
+        else:
+            out[:, :, :n] = np.moveaxis(self.Ex, 2, 0)
+        out[:, :-1, n:] = np.moveaxis(self.B, 2, 0)
+        out[:, -1, n:] = 0.0
+
+    def dense(self) -> np.ndarray:
+        out = np.empty((self.p, self.N, 2 * self.n))
+        self.write_transposed(out)
+        return np.ascontiguousarray(np.moveaxis(out, 0, 2))
+
+    def t_dot(self, cols) -> np.ndarray:
+        """``E^T X`` (``(p, k)``) for ``X``'s columns ``cols (k, N, 2n)``."""
+        n = self.n
+        # sums over the blocks where they lie: no copy of the columns
+        out = np.einsum("kip,jki->pj", self.B, cols[:, :-1, n:])
+        if self.Ex is not None:
+            out += np.einsum("kip,jki->pj", self.Ex, cols[:, :, :n])
+        return out
+
+    def dot(self, v) -> np.ndarray:
+        """``E v`` (``(N, 2n)``) for ``v (p,)``."""
+        n = self.n
+        out = np.zeros((self.N, 2 * n))
+        out[:-1, n:] = self.B @ v
+        if self.Ex is not None:
+            out[:, :n] = self.Ex @ v
+        return out
+
+    def columns(self, keep) -> Border:
+        """The border of the parameters ``keep`` (a mask or indices)."""
+        Ex = None if self.Ex is None else self.Ex[:, :, keep]
+        B = self.B[:, :, keep]
+        return Border(Ex, B, self.N, self.n, B.shape[2])
+
+
+class _DenseBorder(Border):
+    """Any ``E (N, 2n, p)`` behind :class:`Border`'s methods."""
+
+    def __init__(self, E):
+        N, m, p = E.shape
+        self.E, self.N, self.n, self.p = E, N, m // 2, p
+
+    def write_transposed(self, out) -> None:
+        out[:] = np.moveaxis(self.E, 2, 0)
+
+    def dense(self) -> np.ndarray:
+        return self.E
+
+    def t_dot(self, cols) -> np.ndarray:
+        k = cols.shape[0]
+        return self.E.reshape(-1, self.p).T @ cols.reshape(k, -1).T
+
+    def dot(self, v) -> np.ndarray:
+        return self.E @ v
+
+    def columns(self, keep) -> Border:
+        return _DenseBorder(self.E[:, :, keep])
+
+
+def as_border(E) -> Border:
+    """``E`` as a :class:`Border` (a dense ``(N, 2n, p)`` array is wrapped)."""
+    return E if isinstance(E, Border) else _DenseBorder(np.asarray(E, float))
+
+
 class ReducedBorder:
     """The border of one factor eliminated once, for many right-hand sides.
 
@@ -368,14 +459,14 @@ class ReducedBorder:
 
     def __init__(self, fac: KKTFactor, E, D):
         self.fac, self.p = fac, D.shape[0]
-        rows = E.shape[0] * E.shape[1]
-        self._Ef = E.reshape(rows, self.p)
-        # K^-1 E as (p, rows) C-ordered: the Fortran columns LAPACK solves
-        self._KEt = np.empty((self.p, rows))
-        self._KEt[:] = self._Ef.T
+        self._E = as_border(E)
+        N, m = fac.N, 2 * fac.n
+        # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
+        self._KEt = np.empty((self.p, N, m))
+        self._E.write_transposed(self._KEt)
         if self.p:
-            fac.solve_in_place(self._KEt.T)
-        Sc = D - self._Ef.T @ self._KEt.T
+            fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
+        Sc = D - self._E.t_dot(self._KEt)
         self.Sc = 0.5 * (Sc + Sc.T)
         self._inverse, self.rank_deficient = (
             equilibrated_inverse(self.Sc) if self.p else (self.Sc, False)
@@ -394,8 +485,8 @@ class ReducedBorder:
         self.fac.solve_in_place(flat.T)
         if not self.p:
             return np.zeros((0, k))
-        dtheta = self._inverse @ (np.asarray(c, float) - self._Ef.T @ flat.T)
-        flat -= dtheta.T @ self._KEt
+        dtheta = self._inverse @ (np.asarray(c, float) - self._E.t_dot(cols))
+        flat -= dtheta.T @ self._KEt.reshape(self.p, -1)
         return dtheta
 
 
@@ -413,6 +504,7 @@ def solve_reduced(fac: KKTFactor, E, D, b, c, rows=None) -> ReducedSolution:
         if rows is not None:
             z = z[rows].copy()
         return ReducedSolution(z, np.zeros((0,) + b.shape[2:]), D, False)
+    E = as_border(E)
     multi = b.ndim == 3
     bb = b if multi else b[:, :, None]
     cc = c if multi else c[:, None]
@@ -426,14 +518,13 @@ def solve_reduced(fac: KKTFactor, E, D, b, c, rows=None) -> ReducedSolution:
     # was 192 bytes per sample of two states).
     work = np.empty((k + p, rows_all))
     work[:k] = bb.reshape(rows_all, k).T
-    work[k:] = E.reshape(rows_all, p).T
+    E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
     fac.solve_in_place(work.T)
     Kbt, KEt = work[:k], work[k:]  # (k, rows) and (p, rows): K^-1 b, K^-1 E
-    Ef = E.reshape(-1, p)
-    Sc = D - Ef.T @ KEt.T
+    Sc = D - E.t_dot(KEt.reshape(p, fac.N, 2 * fac.n))
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
-    dtheta = inverse @ (cc - Ef.T @ Kbt.T)
+    dtheta = inverse @ (cc - E.t_dot(Kbt.reshape(k, fac.N, 2 * fac.n)))
     # z = K^-1 b - K^-1 E dtheta, in place in the answer's first k rows
     if rows is None:
         Kbt -= dtheta.T @ KEt

@@ -641,7 +641,7 @@ class OutputErrorModel:
         rhs = np.zeros((solver.N, 2 * solver.n))
         rhs[:-1, solver.n :] = -change
         E, D, free = self._free_border(fit, E, D)
-        sol = solve_reduced(fac, E, D, rhs, np.zeros(E.shape[2]))
+        sol = solve_reduced(fac, E, D, rhs, np.zeros(E.p))
         dtheta = np.zeros(p)  # a parameter held on its bound stays there
         dtheta[free] = sol.dtheta
         # How far the fit moves, in any units the same number: the change of
@@ -675,7 +675,7 @@ class OutputErrorModel:
         free = ~fit.held
         if free.all():
             return E, D, free
-        return E[:, :, free], D[np.ix_(free, free)], free
+        return E.columns(free), D[np.ix_(free, free)], free
 
     def _covariance(self, fit):
         """``s^2 Sc^-1`` and the initial state's covariance, at the solution.
@@ -699,7 +699,7 @@ class OutputErrorModel:
         b = np.zeros((solver.N, 2 * n, n))
         b[0, :n, :] = np.eye(n)
         E, D, free = self._free_border(fit, E, D)
-        sol = solve_reduced(fac, E, D, b, np.zeros((E.shape[2], n)), rows=slice(0, 1))
+        sol = solve_reduced(fac, E, D, b, np.zeros((E.p, n)), rows=slice(0, 1))
         s2 = fit.residual_variance * fit.inflation
         x0_cov = sol.z[0, :n, :] * s2 * np.outer(unit, unit)  # to user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)

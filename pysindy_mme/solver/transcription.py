@@ -86,6 +86,7 @@ from .gauss_newton import GaussNewton
 from .kkt import (
     CHUNK,
     BandedKKT,
+    Border,
     equilibrated_inverse,
     keep_factor,
     kept_factor,
@@ -728,11 +729,11 @@ class MMESmoother(GaussNewton):
         if fac is None:
             fac = self._kkt.factor(Q, lin.A, S)
             keep_factor(key, fac)
-        E = np.zeros((N, 2 * n, p))
+        # the border by its blocks: B is the linearisation's own array
+        Ex = HR @ self._M if p and np.any(self._M) else None
+        E = Border(Ex, lin.B, N, n, p)
         D = np.zeros((p, p))
         if p:
-            E[:, :n] = HR @ self._M
-            E[:-1, n:] = lin.B
             RM = np.einsum("kab,bp->kap", self.Rinv, self._M)
             D = np.einsum("ap,kaq->pq", self._M, RM)
         return fac, HR, GW, E, D
@@ -818,9 +819,9 @@ class MMESmoother(GaussNewton):
         if np.all((free > lower) & (free < upper)):
             return sol.z, free, np.zeros(self.p, dtype=int)
         Kb = fac.solve(b)
-        g = c - E.reshape(-1, self.p).T @ Kb.ravel()
+        g = c - E.t_dot(Kb[None])[:, 0]
         dtheta, active = box_qp(sol.Sc, g, lower, upper)
-        z = Kb - fac.solve(np.einsum("kbp,p->kb", E, dtheta))
+        z = Kb - fac.solve(E.dot(dtheta))
         return z, dtheta, active
 
     # ----------------------------------------------------------------- solve

@@ -420,3 +420,43 @@ def test_a_kept_factor_gives_its_band_to_the_next_factorisation():
     assert kkt.kept_factor(key) is None  # dropped for the new factor...
     assert np.shares_memory(second.lu, band)  # ...which took its band
     assert not kkt._IDLE
+
+
+@pytest.mark.parametrize("offsets", [False, True])
+def test_the_border_by_blocks_is_the_dense_border(offsets):
+    # the KKT step's E kept as its blocks (B from the linearisation, the
+    # offsets' rows or None) against the same E written out: the products,
+    # a parameter subset and the bordered solve (dense reference)
+    N, n, p = 30, 2, 3
+    Q, A, S, _, D = _bordered(N, n, p, 11)
+    rng = np.random.default_rng(12)
+    Ex = rng.standard_normal((N, n, p)) if offsets else None
+    B = rng.standard_normal((N - 1, n, p))
+    border = kkt.Border(Ex, B, N, n, p)
+    E = np.zeros((N, 2 * n, p))
+    if offsets:
+        E[:, :n] = Ex
+    E[:-1, n:] = B
+    np.testing.assert_array_equal(border.dense(), E)
+    cols = rng.standard_normal((4, N, 2 * n))
+    ref = E.reshape(-1, p).T @ cols.reshape(4, -1).T
+    np.testing.assert_allclose(border.t_dot(cols), ref, rtol=1e-13, atol=1e-12)
+    v = rng.standard_normal(p)
+    np.testing.assert_allclose(border.dot(v), E @ v, rtol=1e-13, atol=1e-13)
+    keep = np.array([True, False, True])
+    np.testing.assert_array_equal(border.columns(keep).dense(), E[:, :, keep])
+    fac = BandedKKT(N, n).factor(Q, A, S)
+    b, c = rng.standard_normal((N, 2 * n)), rng.standard_normal(p)
+    Ef = E.reshape(-1, p)
+    big = np.block([[_dense_kkt(Q, A, S), Ef], [Ef.T, D]])
+    sol = np.linalg.solve(big, np.concatenate([b.ravel(), c]))
+    got = kkt.solve_reduced(fac, border, D, b, c)
+    np.testing.assert_allclose(got.z.ravel(), sol[:-p], atol=1e-10)
+    np.testing.assert_allclose(got.dtheta, sol[-p:], atol=1e-10)
+    reduced = kkt.ReducedBorder(fac, border, D)
+    many = reduced.new_columns(1)
+    many[0] = b
+    np.testing.assert_allclose(
+        reduced.solve_columns(many, c[:, None])[:, 0], sol[-p:], atol=1e-10
+    )
+    np.testing.assert_allclose(many[0].ravel(), sol[:-p], atol=1e-10)
