@@ -14,7 +14,7 @@ import pytest
 
 from pysindy_mme.solver import kkt
 from pysindy_mme.solver import output_error as oe
-from pysindy_mme.solver.kkt import BandedKKT
+from pysindy_mme.solver.kkt import BandedKKT, ReducedBorder
 from pysindy_mme.solver.output_error import OutputErrorModel
 from pysindy_mme.solver.transcription import mask_patterns
 from pysindy_mme.systems import van_der_pol
@@ -274,7 +274,9 @@ def test_the_reduced_solve_keeps_no_copy_of_the_solved_columns():
     Q, A, S, E, D = _bordered(N, n, p, 8)
     column = N * 2 * n * 8
     fac = BandedKKT(N, n).factor(Q, A, S)
-    for k, rows, allowed in [(1, None, 4 + 1 + 1), (2, slice(0, 1), 5)]:
+    # k = 1: [b, E] and the returned states (the product subtracted from
+    # K^-1 b is added in place by BLAS, not made beside it)
+    for k, rows, allowed in [(1, None, 4 + 1), (2, slice(0, 1), 5)]:
         b = np.zeros((N, 2 * n, k))
         b[0, :n, :] = np.eye(n)[:, :k]
         c = np.zeros((p, k))
@@ -287,6 +289,34 @@ def test_the_reduced_solve_keeps_no_copy_of_the_solved_columns():
             tracemalloc.stop()
         assert peak <= (allowed + 0.2) * column, (k, peak / column)
         assert sol.z.base is None or sol.z.base.size == sol.z.size
+    # a group's solve against an eliminated border: nothing the size of its
+    # columns beside them (the product K^-1 E dtheta was one column each)
+    border = ReducedBorder(fac, E, D)
+    cols = border.new_columns(2)
+    cols[:, 0, :n] = np.eye(n)
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        border.solve_columns(cols, np.zeros((p, 2)))
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    assert peak <= 0.2 * column, peak / column
+
+
+@pytest.mark.parametrize("layout", ["contiguous", "strided"])
+def test_subtract_product_is_the_numpy_product(layout):
+    rng = np.random.default_rng(3)
+    out = rng.standard_normal((3, 50))
+    b = rng.standard_normal((4, 50))
+    a = rng.standard_normal((4, 3))
+    if layout == "strided":  # not C-ordered: the numpy fallback
+        out, b = np.asfortranarray(out), rng.standard_normal((4, 100))[:, ::2]
+    expected = out - a.T @ b
+    before = out.__array_interface__["data"][0]
+    kkt.subtract_product(out, a, b)
+    np.testing.assert_allclose(out, expected, rtol=1e-13, atol=1e-13)
+    assert out.__array_interface__["data"][0] == before
 
 
 class _CountedFeatures:
