@@ -75,3 +75,38 @@ def test_same_linearization_agrees_with_the_whole_array_test(N, q, p):
     # a stack of measurement Jacobians (nonlinear measurement): never linear
     stacked = Linearization(**{**old.__dict__, "H": np.ones((N, 1, 2))})
     assert not solver._same_quadratic_model(old, stacked)
+
+
+def test_a_feasible_stationary_point_ends_the_fit_one_iteration_earlier(monkeypatch):
+    # On 10^5 samples the merit's slope (the cost's plus mu times the sum of
+    # the defects) stays above the tolerance while every defect is at
+    # rounding level; the fit that stops there takes the step that closes
+    # them and ends where one more iteration would: the same cost and
+    # coefficients to far below their standard errors.
+    from pysindy_mme.solver import gauss_newton as gn
+    from pysindy_mme.solver.output_error import OutputErrorModel
+    from pysindy_mme.systems import van_der_pol
+
+    from .test_lean_confirmation import _features, _ignorance
+
+    system = van_der_pol()
+    data = system.measure(3, t=system.time(10, 10_000))
+    engine = OutputErrorModel(
+        _ignorance, 2, _features, data.y, data.t, None, np.eye(1) * 0.01, np.eye(2)[:1]
+    )
+    slots = [(1, 1), (1, 2), (1, 7)]
+    start = data.x + 0.05 * np.random.default_rng(0).standard_normal(data.x.shape)
+    theta0 = np.array([-0.9, 0.9, -0.9])
+    fits = {}
+    default = gn.FEASIBLE
+    for feasible in [default, -1.0]:  # -1: the merit's slope alone
+        monkeypatch.setattr(gn, "FEASIBLE", feasible)
+        fits[feasible] = engine.fit(slots, theta0, start, max_iter=50, tol=1e-9)
+    new, old = fits[default], fits[-1.0]
+    assert new.converged and old.converged
+    assert new.n_iter == old.n_iter - 1
+    assert new.cost == pytest.approx(old.cost, rel=1e-12)
+    np.testing.assert_allclose(
+        new.theta, old.theta, rtol=0, atol=1e-3 * new.std_errors.min()
+    )
+    assert new.joined
