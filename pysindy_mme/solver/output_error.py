@@ -86,10 +86,12 @@ WALL_DECAY = 10.0
 SAME_FLOW = 1e-13
 _SCORE_ELEMENTS = 1 << 22
 # Candidate sensitivities per pass of the variational equations (one flow with
-# Jacobians, the cost of a linearisation, whatever the group): 128 MB of
-# float64. At 10^6 samples of two states the library's candidates of one
-# equation then take one pass instead of one per pair.
-_FLOW_ELEMENTS = 1 << 24
+# Jacobians, the cost of a linearisation, whatever the group): at most 64 MB
+# of float64, the passes' groups of equal size. At 10^6 samples of two states
+# the seven candidates of one equation of a cubic library take two passes
+# (4 + 3) instead of one per pair; one pass of all seven held 107 MB beside
+# the factor and the eliminated border, the peak of a long record's study.
+_FLOW_ELEMENTS = 1 << 23
 
 
 @dataclass
@@ -745,6 +747,7 @@ class OutputErrorModel:
         per_sample = max(N * n, 1)
         group = max(1, _SCORE_ELEMENTS // per_sample)
         flow_group = max(group, _FLOW_ELEMENTS // per_sample)
+        flow_group = -(-k_c // -(-k_c // flow_group))  # passes of equal size
         num = np.zeros(k_c)
         den = np.zeros(k_c)
         scale = np.ones(k_c)
@@ -778,8 +781,12 @@ class OutputErrorModel:
                 scale[lo : lo + g] = size
                 # the forcing written straight into the solve's columns
                 cols = border.new_columns(g)
-                cols[:, :-1, n:] = np.moveaxis(sens, 2, 0) / size[:, None, None]
-                cols[:, :-1, n:] *= -1.0
+                forcing = cols[:, :-1, n:]
+                # divided where it is written (a quotient beside it was half
+                # the columns' size, at the peak of a long record's study)
+                np.divide(np.moveaxis(sens, 2, 0), size[:, None, None], out=forcing)
+                forcing *= -1.0
+                del forcing
                 dtheta = border.solve_columns(cols, np.zeros((D.shape[0], g)))
                 dx = cols[:, :, :n]  # (G, N, n)
                 dy = (
