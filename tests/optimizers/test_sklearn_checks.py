@@ -18,8 +18,9 @@ What the tags decide (``FloatingFStepwise.__sklearn_tags__``):
 
 Measured with scikit-learn 1.9.1 (per estimator): 58 checks pass, 1 is skipped
 by scikit-learn itself (``SCIPY_ARRAY_API`` unset; without pandas, two more
-are skipped), none fails. Before issue 21: 43 passed, 15 failed (pysindy's
-STLSQ: 39 pass, 21 fail).
+are skipped), none fails, except under numpy 2.4.6 / scipy 1.17.1 the
+paper's rule in the sample-weight check (listed below with its reason).
+Before issue 21: 43 passed, 15 failed (pysindy's STLSQ: 39 pass, 21 fail).
 """
 
 from __future__ import annotations
@@ -33,7 +34,16 @@ from pysindy_mme import FloatingFStepwise
 # {estimator label: {check name: reason}}; empty: every check passes.
 EXPECTED_FAILED_CHECKS: dict[str, dict[str, str]] = {
     "default": {},
-    "paper": {},
+    "paper": {
+        "check_sample_weight_equivalence_on_dense_data": (
+            "15 rows x 30 columns, 9 of the rows with a nonzero weight: the "
+            "paper's fixed F* = 10 adds terms until the fit is exact, and the "
+            "eighth term is one of many that each leave a rest of 1e-19 "
+            "against a residual of 1e-7, ranked by rounding; the weighted "
+            "and the repeated rows round differently (f0 or f1 enters; with "
+            "numpy 2.4 / scipy 1.17, not with earlier versions)"
+        ),
+    },
     "fit_intercept": {},
 }
 
