@@ -802,6 +802,10 @@ class OutputErrorModel:
                 den[lo : lo + g] = np.einsum("gka,gka->g", Rdy, dy)
                 # a term not finite along the trajectory cannot be scored
                 num[lo : lo + g][~finite] = np.nan
+                del dy, Rdy  # not beside the next group's columns
+            # the next pass's sensitivities must not be made beside these
+            # (sens, a view, would keep them alive)
+            del sens_f, sens
         ssr = fit.cost
         # raw residual degrees of freedom, the statistic corrected for
         # correlated residuals (OutputErrorFit.inflation)
