@@ -197,13 +197,22 @@ def main(argv=None):
         help="with --row: the folder of its records (default: simulated "
         "into a temporary folder by this process first)",
     )
+    parser.add_argument("--write", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.write:  # seconds, rate, seeds, folder: the records of one row
+        seconds, rate, n_seeds, folder = args.write
+        write_records(
+            _number(float(seconds)), _number(float(rate)), int(float(n_seeds)), folder
+        )
+        return
     if args.row:  # one row in this process (see run_in_subprocess)
         seconds, rate = _number(args.row[0]), _number(args.row[1])
         n_seeds = int(args.row[2])
         if args.records is None:
             with tempfile.TemporaryDirectory() as folder:
-                write_records(seconds, rate, n_seeds, folder)
+                # simulated by another process: not this one's heap
+                cmd = [sys.executable, __file__, "--write", *map(str, args.row)]
+                subprocess.run([*cmd, folder], check=True)
                 row = run_case(seconds, rate, n_seeds, folder, not args.no_trace)
         else:
             row = run_case(seconds, rate, n_seeds, args.records, not args.no_trace)
