@@ -195,7 +195,7 @@ def main(argv=None):
     parser.add_argument(
         "--records",
         help="with --row: the folder of its records (default: simulated "
-        "into a temporary folder by this process first)",
+        "into a temporary folder by a child process first)",
     )
     parser.add_argument("--write", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

@@ -142,7 +142,6 @@ class GaussNewton:
                 message = "converged (the merit function stopped decreasing)"
                 break
             previous, lin = lin, new_lin
-            del new_lin
             meas = self.measurement_cost(lin.r) + self.prior_cost(x)
             linear = alpha == 1.0 and self._same_quadratic_model(previous, lin)
             # the old linearisation (its A, B, defects and residuals: 136

@@ -747,7 +747,8 @@ class OutputErrorModel:
         per_sample = max(N * n, 1)
         group = max(1, _SCORE_ELEMENTS // per_sample)
         flow_group = max(group, _FLOW_ELEMENTS // per_sample)
-        flow_group = -(-k_c // -(-k_c // flow_group))  # passes of equal size
+        passes = -(-k_c // flow_group)
+        flow_group = -(-k_c // passes)  # the passes' groups of equal size
         num = np.zeros(k_c)
         den = np.zeros(k_c)
         scale = np.ones(k_c)
@@ -781,12 +782,13 @@ class OutputErrorModel:
                 scale[lo : lo + g] = size
                 # the forcing written straight into the solve's columns
                 cols = border.new_columns(g)
-                forcing = cols[:, :-1, n:]
-                # divided where it is written (a quotient beside it was half
-                # the columns' size, at the peak of a long record's study)
-                np.divide(np.moveaxis(sens, 2, 0), size[:, None, None], out=forcing)
-                forcing *= -1.0
-                del forcing
+                # minus the sensitivities over their size, divided where it
+                # is written (a quotient beside it was half the columns'
+                # size, at the peak of a long record's study); x / -s is
+                # -(x / s) exactly
+                np.divide(
+                    np.moveaxis(sens, 2, 0), -size[:, None, None], out=cols[:, :-1, n:]
+                )
                 dtheta = border.solve_columns(cols, np.zeros((D.shape[0], g)))
                 dx = cols[:, :, :n]  # (G, N, n)
                 dy = (

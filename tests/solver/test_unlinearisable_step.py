@@ -23,7 +23,7 @@ def _mme():
 
 def _refusing(monkeypatch, refuse):
     """Make ``MMESmoother.linearize`` raise on the calls ``refuse(k)`` picks
-    (k counts calls from 1); returns the list of the steps' lengths asked."""
+    (k counts calls from 1); returns the list of the points asked for."""
     original = MMESmoother.linearize
     calls, points = [0], []
 
