@@ -249,6 +249,20 @@ def run_study(study, progress: Progress) -> Discovery:
     extended = _extended_model(study, proposals, extended_fit, estimate.x, substeps)
     fits = {"assumed": assumed.fit, "extended": extended_fit}
     models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
+    # the integrator check reads the extended fit's linearisation
+    step_note = (
+        None
+        if confirmation.fit is None
+        else step_size_check(
+            engine, confirmation.fit, _fit_names(study, proposals, confirmation)
+        )
+    )
+    # From here on the fits are read, not tested or resumed: their
+    # statistics are computed now and their linearisations released (two
+    # fits' flows and sensitivities, a quarter of the gain stage's peak
+    # at 10^6 samples, held while its free runs and refits build their own)
+    for fit in fits.values():
+        fit.keep_statistics()
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
     if study.validation is None and confirmation.slots:
         hold_out(
@@ -262,7 +276,7 @@ def run_study(study, progress: Progress) -> Discovery:
         )
     progress.stage("5. gain measured")
     notes, smoothing = _notes(
-        study, assumed, estimate, proposals, confirmation, gain, engine
+        study, assumed, estimate, proposals, confirmation, gain, engine, step_note
     )
     terms, estimates = _terms(study, proposals, confirmation)
     names = _quantity_names(study, proposals, extended_fit)
@@ -669,19 +683,27 @@ def _partial_f(proposals, study, state, column) -> float:
     return float("nan")
 
 
-def _notes(study, assumed, estimate, proposals, confirmation, gain, engine):
+def _fit_names(study, proposals, confirmation) -> list:
+    """A name per parameter and term of the confirmed fit (no offsets)."""
+    return list(study.parameter_names) + [
+        f"{proposals.name(c)} in {study.state_names[i]}'" for i, c in confirmation.slots
+    ]
+
+
+def _notes(
+    study, assumed, estimate, proposals, confirmation, gain, engine, step_note=None
+):
     """Everything the user must know about how far to trust the numbers:
     ``(notes, smoothing)``, the second the smoothing check's finding when
-    it found the width harmless (shown with the extended model)."""
+    it found the width harmless (shown with the extended model).
+    ``step_note``: the integrator check's (:func:`~.steps.step_size_check`),
+    made while the fit still had its linearisation."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
     notes += list(confirmation.notes)
     shown = ""
     fit = confirmation.fit
     if fit is not None:
-        names = list(study.parameter_names) + [
-            f"{proposals.name(c)} in {study.state_names[i]}'"
-            for i, c in confirmation.slots
-        ]
+        names = _fit_names(study, proposals, confirmation)
         notes += doubt_notes(fit, names)
         general = generalisation_note(
             gain, names[len(study.parameter_names) :], study.channel_names
@@ -702,9 +724,8 @@ def _notes(study, assumed, estimate, proposals, confirmation, gain, engine):
                 "optimum"
             )
         notes += _noise_sanity(study, fit)
-        check = step_size_check(engine, fit, names)
-        if check:
-            notes.append(check)
+        if step_note:
+            notes.append(step_note)
         smoothing = smoothing_check(
             engine, fit, proposals.library, proposals.name, names
         )

@@ -157,6 +157,7 @@ class OutputErrorFit:
     at_bound: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     joined: bool = True
     at_wall: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    _released: bool = False
 
     def __post_init__(self):
         if self.at_bound.size != self.n_physical:
@@ -171,6 +172,35 @@ class OutputErrorFit:
         out[: self.n_physical] = self.at_bound
         out[self.n_physical : self.n_physical + len(self.slots)] = self.at_wall
         return out
+
+    def keep_statistics(self) -> OutputErrorFit:
+        """Compute the statistics that need the solver's state, then drop it.
+
+        A fit keeps its last linearisation and solver (sensitivities,
+        weights, the trajectory's flows: about 130-180 bytes per sample) so
+        that its covariance is computed only when asked for, its score tests
+        need no new linearisation and :meth:`OutputErrorModel.resume` can go
+        on from it. Once none of that is needed, this computes
+        :attr:`covariance`, :attr:`x0_covariance` and :attr:`inflation`
+        (the numbers a report reads) and releases the rest: at 10^6 samples
+        two such fits held through the gain stage were a quarter of its
+        peak. Afterwards score tests and the integrator check refuse the fit
+        (``ValueError``) and ``resume`` refits from ``theta`` and ``x``.
+        Returns the fit.
+        """
+        if self._state is not None:
+            self.inflation  # noqa: B018 - computed and cached now
+            self._covariances()
+            self._state = None
+            self._released = True
+        return self
+
+    def _check_held(self, what: str) -> None:
+        if self._released:
+            raise ValueError(
+                f"{what} needs the fit's linearisation, which keep_statistics() "
+                "released: refit the terms (OutputErrorModel.fit) to test them"
+            )
 
     def _covariances(self):
         # computed on first use: most trial fits are judged by their cost alone
@@ -617,6 +647,7 @@ class OutputErrorModel:
         chi-square); NaN when the fit has no KKT system.
         """
         p = fit.theta.size
+        fit._check_held("the integrator check")
         if fit._state is None:
             return np.full(p, np.nan), np.nan
         solver, res = fit._state
@@ -733,6 +764,7 @@ class OutputErrorModel:
         """
         k_c = len(candidates)
         zeros = np.zeros(k_c)
+        fit._check_held("a score test")
         if not k_c or fit._state is None or not np.isfinite(fit.cost):
             return zeros, zeros
         try:

@@ -490,3 +490,28 @@ def test_the_border_by_blocks_is_the_dense_border(offsets):
         reduced.solve_columns(many, c[:, None])[:, 0], sol[-p:], atol=1e-10
     )
     np.testing.assert_allclose(many[0].ravel(), sol[:-p], atol=1e-10)
+
+
+def test_keep_statistics_keeps_the_numbers_and_releases_the_linearisation(record):
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    kept = engine.fit(slots, np.array([-0.5, 0.5, -0.5]), data.x, max_iter=50)
+    released = engine.fit(slots, np.array([-0.5, 0.5, -0.5]), data.x, max_iter=50)
+    assert released.keep_statistics() is released
+    assert released._state is None
+    np.testing.assert_array_equal(released.theta, kept.theta)
+    np.testing.assert_allclose(released.covariance, kept.covariance, rtol=1e-12)
+    np.testing.assert_allclose(released.x0_covariance, kept.x0_covariance, rtol=1e-12)
+    assert released.inflation == kept.inflation
+    np.testing.assert_allclose(released.std_errors, kept.std_errors, rtol=1e-12)
+    # what needs the linearisation refuses the fit, and says why
+    with pytest.raises(ValueError, match="keep_statistics"):
+        engine.scores(released, [(1, 3)])
+    with pytest.raises(ValueError, match="keep_statistics"):
+        engine.integrator_effect(released)
+    # resuming refits from the fit's point, and ends where it ended
+    again = engine.resume(released, max_iter=50, tol=1e-9)
+    np.testing.assert_allclose(again.theta, kept.theta, rtol=1e-6)
+    # a second call is harmless
+    released.keep_statistics()
+    np.testing.assert_allclose(released.covariance, kept.covariance, rtol=1e-12)
