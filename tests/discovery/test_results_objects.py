@@ -473,3 +473,22 @@ def test_command_line_output_folder_holds_the_reloadable_result(plain, tmp_path)
     written = write_outputs(plain, tmp_path)
     assert tmp_path / "discovery.npz" in written
     assert str(Discovery.load(tmp_path / "discovery.npz")) == str(plain)
+
+
+@pytest.mark.parametrize("case", ["plain", "grey"])
+def test_a_result_keeps_statistics_not_linearisations(case, request):
+    """The fits a Discovery returns hold their numbers, not their solvers:
+    a study's linearisations (flows, sensitivities, about 300 bytes per
+    sample) are released before the gain stage, so a list of results (many
+    records, ``discover_many``) costs their numbers only."""
+    res = request.getfixturevalue(case)
+    for fit in (res.assumed.fit, res.extended_fit):
+        assert fit._state is None
+        cov = fit.covariance
+        k = fit.theta.size
+        assert cov.shape == (k, k)
+        assert np.all(np.isfinite(np.diag(cov)[~fit.held]))
+        assert np.all(np.isfinite(fit.x0_covariance))
+    # the report's standard errors are those numbers
+    se = res.extended_fit.std_errors
+    assert np.all(np.isfinite(se[~res.extended_fit.held]))
