@@ -157,6 +157,8 @@ class OutputErrorFit:
     at_bound: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     joined: bool = True
     at_wall: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    #: the solver's state was released (keep_statistics) or never kept (a
+    #: fit loaded from a file): what needs it refuses the fit
     _released: bool = False
 
     def __post_init__(self):
@@ -195,11 +197,12 @@ class OutputErrorFit:
             self._released = True
         return self
 
-    def _check_held(self, what: str) -> None:
+    def _require_linearisation(self, what: str) -> None:
         if self._released:
             raise ValueError(
-                f"{what} needs the fit's linearisation, which keep_statistics() "
-                "released: refit the terms (OutputErrorModel.fit) to test them"
+                f"{what} needs the fit's linearisation, which this fit no longer "
+                "holds (released by keep_statistics(), or loaded from a file): "
+                "refit its terms (OutputErrorModel.fit) to test them"
             )
 
     def _covariances(self):
@@ -647,7 +650,7 @@ class OutputErrorModel:
         chi-square); NaN when the fit has no KKT system.
         """
         p = fit.theta.size
-        fit._check_held("the integrator check")
+        fit._require_linearisation("the integrator check")
         if fit._state is None:
             return np.full(p, np.nan), np.nan
         solver, res = fit._state
@@ -764,7 +767,7 @@ class OutputErrorModel:
         """
         k_c = len(candidates)
         zeros = np.zeros(k_c)
-        fit._check_held("a score test")
+        fit._require_linearisation("a score test")
         if not k_c or fit._state is None or not np.isfinite(fit.cost):
             return zeros, zeros
         try:
