@@ -254,7 +254,7 @@ def run_study(study, progress: Progress) -> Discovery:
         None
         if confirmation.fit is None
         else step_size_check(
-            engine, confirmation.fit, _fit_names(study, proposals, confirmation)
+            engine, confirmation.fit, _term_names(study, proposals, confirmation.slots)
         )
     )
     # From here on the fits are read, not tested or resumed: their
@@ -349,8 +349,7 @@ def _with_gauges(study, trade_offs) -> list:
 
 def _quantity_names(study, proposals, fit) -> list:
     """A name per entry of ``fit.theta``: parameters, terms, offsets."""
-    names = list(study.parameter_names)
-    names += [f"{proposals.name(c)} in {study.state_names[i]}'" for i, c in fit.slots]
+    names = _term_names(study, proposals, fit.slots)
     if study.offsets:
         names += [f"offset of {name}" for name in study.channel_names]
     return names
@@ -683,10 +682,10 @@ def _partial_f(proposals, study, state, column) -> float:
     return float("nan")
 
 
-def _fit_names(study, proposals, confirmation) -> list:
-    """A name per parameter and term of the confirmed fit (no offsets)."""
+def _term_names(study, proposals, slots) -> list:
+    """A name per grey-box parameter and per term of ``slots`` (no offsets)."""
     return list(study.parameter_names) + [
-        f"{proposals.name(c)} in {study.state_names[i]}'" for i, c in confirmation.slots
+        f"{proposals.name(c)} in {study.state_names[i]}'" for i, c in slots
     ]
 
 
@@ -703,7 +702,7 @@ def _notes(
     shown = ""
     fit = confirmation.fit
     if fit is not None:
-        names = _fit_names(study, proposals, confirmation)
+        names = _term_names(study, proposals, confirmation.slots)
         notes += doubt_notes(fit, names)
         general = generalisation_note(
             gain, names[len(study.parameter_names) :], study.channel_names
