@@ -532,15 +532,27 @@ class ParametricModel:
     def has_exact_correction_jacobian(self) -> bool:
         return not self.used or hasattr(self.features, "gradient")
 
-    def correction_jacobian(self, x, u, theta) -> np.ndarray:
-        """``d (correction) / dx``, ``(K, n, n)``, from the features' gradient."""
+    def correction_jacobian(self, x, u, theta, out=None, unit=None) -> np.ndarray:
+        """``d (correction) / dx``, ``(K, n, n)``, from the features' gradient.
+
+        With ``unit`` (one per state), in the solver's internal units:
+        ``S^-1 J S`` for ``S = diag(unit)``. With ``out`` (``(K, n, n)``),
+        added into it in place and returned: the integrators call this at
+        every RK4 stage, and at 10^6 samples each ``(K, n, n)`` temporary
+        (a zeroed answer, its rescaled copy, the sum) is 32 MB to allocate,
+        fault in and write.
+        """
         K, n = x.shape
+        if out is None:
+            out = np.zeros((K, n, n))
         if not self.used:
-            return np.zeros((K, n, n))
+            return out
         grad = self.features.gradient(self._z(x, u), self.used)
-        out = np.zeros((K, n, n))
-        for state, col, coef in zip(self._rows, self._cols, self._coefficients(theta)):
-            out[:, state, :] += coef * grad[:, col, :n]
+        coefs = self._coefficients(theta)
+        for state, col, coef in zip(self._rows, self._cols, coefs):
+            # row ``state`` of S^-1 J S: coef * grad * unit / unit[state]
+            factor = coef if unit is None else coef * (unit / unit[state])
+            out[:, state, :] += grad[:, col, :n] * factor
         return out
 
     def jacobian(self, x, t, u, theta) -> np.ndarray:

@@ -55,6 +55,11 @@ class LibraryColumns:
 
     def gradient(self, z, columns):
         lib, where = self._split(columns)
+        if len(lib) == len(columns):
+            # no constant among them: the library's gradient as it is (the
+            # integrators call this at every RK4 stage; a copy into a zeroed
+            # array was 30 % of its cost at 10^6 samples)
+            return self.features.gradient(z, lib)
         out = np.zeros((len(z), len(columns), z.shape[1]))
         if lib:
             out[:, where] = self.features.gradient(z, lib)

@@ -397,10 +397,15 @@ class Border:
     def t_dot(self, cols) -> np.ndarray:
         """``E^T X`` (``(p, k)``) for ``X``'s columns ``cols (k, N, 2n)``."""
         n = self.n
-        # sums over the blocks where they lie: no copy of the columns
-        out = np.einsum("kip,jki->pj", self.B, cols[:, :-1, n:])
-        if self.Ex is not None:
-            out += np.einsum("kip,jki->pj", self.Ex, cols[:, :, :n])
+        # sums over the blocks where they lie: no copy of the columns. One
+        # einsum per column: with several columns at once ("kip,jki->pj")
+        # numpy's einsum runs 5x slower at 10^6 samples and p = k = 5
+        # (550 ms against 100 ms), for the same sums in the same order
+        out = np.empty((self.p, cols.shape[0]))
+        for j, col in enumerate(cols):
+            out[:, j] = np.einsum("kip,ki->p", self.B, col[:-1, n:])
+            if self.Ex is not None:
+                out[:, j] += np.einsum("kip,ki->p", self.Ex, col[:, :n])
         return out
 
     def dot(self, v) -> np.ndarray:

@@ -264,8 +264,10 @@ class Dynamics:
             base = rowwise_jacobian(
                 lambda zz: self.model.base_part(zz * s, t, u, theta) / s, z, scale=1.0
             )
-            exact = self.model.correction_jacobian(self._user(z), u, theta)
-            return base + self._to_internal(exact)
+            # added into the fresh array in place, already in internal units
+            return self.model.correction_jacobian(
+                self._user(z), u, theta, out=base, unit=s
+            )
         return rowwise_jacobian(lambda zz: self(zz, t, u, theta), z, scale=1.0)
 
     def split_at(self, theta, first_column=None):

@@ -108,3 +108,57 @@ def test_simulate_model_against_closed_forms():
         lambda x, t, u: -x + u, [0.25], t, u=np.ones((t.size, 1)), n_states=1
     )
     np.testing.assert_allclose(decay[:, 0], 1 - 0.75 * np.exp(-t), atol=1e-7)
+
+
+def _with_exact_gradient():
+    """``x' = base + c`` terms on ``x0^3`` and ``x0 x1``, the features with
+    their closed-form gradient (what ``has_exact_correction_jacobian`` reads)."""
+    from pysindy_mme.core.model import ParametricModel
+
+    def base(x, t, u, p):
+        return np.column_stack([x[:, 1], -p[0] * x[:, 0]])
+
+    def features(z, columns):
+        cols = [z[:, 0] ** 3, z[:, 0] * z[:, 1]]
+        return np.column_stack([cols[c] for c in columns])
+
+    def gradient(z, columns):
+        g = np.zeros((z.shape[0], len(columns), z.shape[1]))
+        for j, c in enumerate(columns):
+            if c == 0:
+                g[:, j, 0] = 3 * z[:, 0] ** 2
+            else:
+                g[:, j, 0], g[:, j, 1] = z[:, 1], z[:, 0]
+        return g
+
+    features.gradient = gradient
+    # the same column in two equations, two columns in one equation
+    model = ParametricModel(base, 2, 1, features, [(1, 0), (0, 1), (1, 1)])
+    return model, np.array([1.3, -0.4, 0.25, 0.6])
+
+
+def test_correction_jacobian_in_place_and_in_internal_units():
+    from pysindy_mme.solver.units import Dynamics
+
+    model, theta = _with_exact_gradient()
+    assert model.has_exact_correction_jacobian
+    x = np.random.default_rng(3).uniform(-2, 2, (30, 2))
+
+    def correction(z):
+        return model(z, 0.0, None, theta) - model.base_part(z, 0.0, None, theta)
+
+    J = model.correction_jacobian(x, None, theta)
+    np.testing.assert_allclose(J, rowwise_jacobian(correction, x), atol=1e-8)
+    unit = np.array([0.01, 20.0])
+    A = np.random.default_rng(4).standard_normal((30, 2, 2))
+    before = A.copy()
+    out = model.correction_jacobian(x, None, theta, out=A, unit=unit)
+    assert out is A  # added where it lies
+    internal = J * unit[None, None, :] / unit[None, :, None]
+    np.testing.assert_allclose(out, before + internal, rtol=1e-13, atol=1e-13)
+    # the solver's Jacobian in internal units against central differences of
+    # the model in internal units
+    dyn = Dynamics(model, unit)
+    z = x / unit
+    ref = rowwise_jacobian(lambda zz: dyn(zz, 0.0, None, theta), z, scale=1.0)
+    np.testing.assert_allclose(dyn.jacobian(z, 0.0, None, theta), ref, rtol=1e-7)
