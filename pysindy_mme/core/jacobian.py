@@ -36,11 +36,21 @@ def rowwise_jacobian(func, x, rel_step: float | None = None, scale=None) -> np.n
             )
         scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
     h = rel_step * np.maximum(np.abs(x), scale)
-    columns = []
+    out = None
     for j in range(x.shape[1]):
         xp, xm = x.copy(), x.copy()
         xp[:, j] += h[:, j]
         xm[:, j] -= h[:, j]
         with np.errstate(all="ignore"):
-            columns.append((func(xp) - func(xm)) / (2.0 * h[:, [j]]))
-    return np.stack(columns, axis=-1)
+            diff = np.asarray(func(xp), dtype=float) - func(xm)
+            if out is None:
+                out = np.empty(diff.shape + (x.shape[1],))
+            # output by output into its place: each division then runs over
+            # the rows (dividing the (rows, n_out) difference by a column
+            # broadcast along a last axis of 2-5 is several times slower)
+            two_h = 2.0 * h[:, j]
+            for i in range(diff.shape[1]):
+                np.divide(diff[:, i], two_h, out=out[:, i, j])
+    if out is None:  # no variables
+        out = np.empty(np.shape(func(x)) + (0,))
+    return out

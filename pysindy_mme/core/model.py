@@ -550,9 +550,12 @@ class ParametricModel:
         grad = self.features.gradient(self._z(x, u), self.used)
         coefs = self._coefficients(theta)
         for state, col, coef in zip(self._rows, self._cols, coefs):
-            # row ``state`` of S^-1 J S: coef * grad * unit / unit[state]
-            factor = coef if unit is None else coef * (unit / unit[state])
-            out[:, state, :] += grad[:, col, :n] * factor
+            # row ``state`` of S^-1 J S: coef * grad * unit / unit[state].
+            # Element by element: each operation then runs over the K rows
+            # (numpy's loop over a (K, n) view with n = 2 is 10x slower)
+            for j in range(n):
+                factor = coef if unit is None else coef * (unit[j] / unit[state])
+                out[:, state, j] += grad[:, col, j] * factor
         return out
 
     def jacobian(self, x, t, u, theta) -> np.ndarray:

@@ -508,3 +508,19 @@ def test_simulate_guided_of_one_sample_is_its_initial_state():
     )
     np.testing.assert_array_equal(guided.x, [[[2.0, 0.0]]])
     assert guided.diverged_at[0] == -1
+
+
+@pytest.mark.parametrize(
+    "n, m", [(1, 1), (1, 4), (2, 0), (2, 3), (2, 9), (3, 4), (3, 6), (9, 2)]
+)
+def test_small_matmul_equals_numpys_batched_matmul(n, m):
+    from pysindy_mme.core.integrate import _small_matmul
+
+    rng = np.random.default_rng(n * 10 + m)
+    J, D = rng.standard_normal((57, n, n)), rng.standard_normal((57, n, m))
+    out = _small_matmul(J, D)
+    assert out.shape == (57, n, m)
+    np.testing.assert_allclose(out, J @ D, rtol=1e-13, atol=1e-13)
+    # strided views (the flows pass slices of their arrays)
+    Dw = rng.standard_normal((57, n, m + 3))[:, :, 1 : m + 1]
+    np.testing.assert_allclose(_small_matmul(J, Dw), J @ Dw, rtol=1e-13, atol=1e-13)
