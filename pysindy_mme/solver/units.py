@@ -199,6 +199,30 @@ def state_units(model, x, t, u, theta, H, sy, h, fallback) -> np.ndarray:
     return np.where(np.isfinite(s), s, fallback)
 
 
+#: columns up to which :func:`_scale` goes column by column
+_BY_COLUMN = 16
+
+
+def _scale(a, unit, op=np.multiply):
+    """``op(a, unit)`` for ``a (K, n)`` and one unit per column (``np.divide``
+    for ``a / unit``): the same numbers, column by column.
+
+    numpy runs its inner loop over the last axis; with 2-5 states that loop
+    is a few elements long and the broadcast costs 5-7x an operation over
+    the rows (0.10 ms against 0.015 for 32,768 rows of two states). The
+    integrators convert units at every RK4 stage and finite-difference
+    step.
+    """
+    a = np.asarray(a, dtype=float)
+    n = unit.shape[0]
+    if a.ndim != 2 or a.shape[1] != n or n > _BY_COLUMN:
+        return op(a, unit)
+    out = np.empty(a.shape)
+    for j in range(n):
+        op(a[:, j], unit[j], out=out[:, j])
+    return out
+
+
 class Dynamics:
     """The model in internal units: ``f_s(z, theta) = S^-1 f(S z, theta)``.
 
@@ -233,7 +257,7 @@ class Dynamics:
         """``S z``, the same array object for the same ``z`` (so the model can
         reuse what it computed at that point)."""
         if self._last[0] is not z:
-            self._last = (z, z * self.unit)
+            self._last = (z, _scale(z, self.unit))
         return self._last[1]
 
     def _to_internal(self, J):
@@ -242,8 +266,8 @@ class Dynamics:
 
     def __call__(self, z, t, u, theta):
         if self.parametric:
-            return self.model(self._user(z), t, u, theta) / self.unit
-        return self.model(z * self.unit, t, u) / self.unit
+            return _scale(self.model(self._user(z), t, u, theta), self.unit, np.divide)
+        return _scale(self.model(_scale(z, self.unit), t, u), self.unit, np.divide)
 
     def jacobian(self, z, t, u, theta):
         if self._augmented is not None:
@@ -262,7 +286,11 @@ class Dynamics:
             # finite differences of the assumed model only (steps in z); the
             # correction's Jacobian is exact: S^-1 c'(S z) S
             base = rowwise_jacobian(
-                lambda zz: self.model.base_part(zz * s, t, u, theta) / s, z, scale=1.0
+                lambda zz: _scale(
+                    self.model.base_part(_scale(zz, s), t, u, theta), s, np.divide
+                ),
+                z,
+                scale=1.0,
             )
             # added into the fresh array in place, already in internal units
             return self.model.correction_jacobian(

@@ -162,3 +162,20 @@ def test_correction_jacobian_in_place_and_in_internal_units():
     z = x / unit
     ref = rowwise_jacobian(lambda zz: dyn(zz, 0.0, None, theta), z, scale=1.0)
     np.testing.assert_allclose(dyn.jacobian(z, 0.0, None, theta), ref, rtol=1e-7)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 20])
+def test_unit_scaling_column_by_column_is_numpys_broadcast(n):
+    from pysindy_mme.solver.units import _scale
+
+    rng = np.random.default_rng(n)
+    a, unit = rng.standard_normal((41, n)), rng.uniform(0.1, 10.0, n)
+    # the same operations: equal to the last bit, a new array
+    np.testing.assert_array_equal(_scale(a, unit), a * unit)
+    np.testing.assert_array_equal(_scale(a, unit, np.divide), a / unit)
+    assert _scale(a, unit) is not a
+    # a strided view in, a C-ordered answer out
+    wide = rng.standard_normal((41, 2 * n))[:, ::2]
+    np.testing.assert_array_equal(_scale(wide, unit), wide * unit)
+    # shapes it does not handle go to numpy as they are
+    np.testing.assert_array_equal(_scale(a[:, :1], unit[:1]), a[:, :1] * unit[:1])
