@@ -21,6 +21,7 @@ import dataclasses
 
 import numpy as np
 
+from ..core.blockwise import max_abs
 from ..exceptions import DivergenceError
 from .records import SmootherResult
 
@@ -91,9 +92,7 @@ class GaussNewton:
             # such a point the step changes the cost by nothing and closes
             # the last defects, so it is the last (one iteration of a long
             # record's fit).
-            feasible = float(
-                np.max(np.abs(lin.defects), initial=0.0)
-            ) <= FEASIBLE * self.scale(x)
+            feasible = max_abs(lin.defects) <= FEASIBLE * self.scale(x)
             if -slope <= small or (feasible and abs(grad_dot_p) <= small):
                 # Stationary to within tol: take the (tiny) step and stop.
                 x, d, theta = x + dx, d_new, self._on_box(theta + dth, active)
@@ -209,15 +208,15 @@ class GaussNewton:
             r = self.residuals(x, theta)
             meas = self.measurement_cost(r)
             phi = self.flow(x, d, theta, jacobian=False)
-        max_defect = float(np.max(np.abs(phi - x[1:]), initial=0.0))
+            # in place: phi itself is not needed (no second array its size)
+            defects = np.subtract(phi, x[1:], out=phi)
+        max_defect = max_abs(defects)
         if lin.x is not x:
             # The last (sub-tolerance) step was taken without relinearising.
             # Keep A, G, B, H from just before it (they change by O(step))
             # with the exact defects and residuals at the returned point: a
             # warm start from here is then consistent up to that O(step).
-            lin = dataclasses.replace(
-                lin, x=x, d=d, theta=theta, defects=phi - x[1:], r=r
-            )
+            lin = dataclasses.replace(lin, x=x, d=d, theta=theta, defects=defects, r=r)
         if not (np.isfinite(x).all() and np.isfinite(theta).all()):
             raise DivergenceError("the estimate diverged to non-finite values")
         mec = self.model_error_cost(d, W)
@@ -270,13 +269,13 @@ class GaussNewton:
             rows = slice(None, None, max(1, a.shape[0] // _SAME_PROBE))
             if np.max(np.abs(b[rows] - a[rows])) > tol * scale:
                 return False
-            return np.max(np.abs(b - a)) <= tol * scale
+            return max_abs(b, a) <= tol * scale
 
         return bool(
             same(old.A, new.A, 1.0)
             and same(old.G, new.G, 1e-300)
             and same(old.B, new.B, 1e-300)
-            and np.max(np.abs(new.defects), initial=0.0) <= tol * self.scale(new.x)
+            and max_abs(new.defects) <= tol * self.scale(new.x)
         )
 
     def _raise_singular(self, lin):

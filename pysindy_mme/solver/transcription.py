@@ -79,6 +79,7 @@ import dataclasses
 
 import numpy as np
 
+from ..core.blockwise import all_finite, first_true, max_abs, row_max_abs
 from ..core.integrate import InputSignal, rk4_flow
 from ..core.jacobian import rowwise_jacobian
 from ..exceptions import DivergenceError
@@ -595,13 +596,16 @@ class MMESmoother(GaussNewton):
 
     def _check_flow(self, phi, x):
         """Raise if one interval of the model explodes (or is not finite)."""
-        with np.errstate(all="ignore"):
-            jump = np.abs(phi - x[:-1])
-            bad = ~np.isfinite(phi).all(axis=1) | (
-                jump.max(axis=1) > 1e6 * self.scale(x)
-            )
-        if bad.any():
-            k = int(np.argmax(bad))
+        limit = 1e6 * self.scale(x)
+
+        def bad(sl):
+            with np.errstate(all="ignore"):
+                part = phi[sl]
+                jump = np.abs(part - x[:-1][sl])
+                return ~np.isfinite(part).all(axis=1) | (jump.max(axis=1) > limit)
+
+        k = first_true(bad, phi.shape[0])
+        if k >= 0:
             with np.errstate(all="ignore"):
                 x_k, phi_k = x[k] * self.unit, phi[k] * self.unit
             raise DivergenceError(
@@ -619,13 +623,13 @@ class MMESmoother(GaussNewton):
         theta = self.theta_init if theta is None else np.asarray(theta, float)
         phi, A, G, B = self.flow(x, d, theta, jacobian=True)
         self._check_flow(phi, x)
-        if not (np.isfinite(A).all() and np.isfinite(G).all() and np.isfinite(B).all()):
+        if not (all_finite(A) and all_finite(G) and all_finite(B)):
             raise DivergenceError(
                 "the Jacobian of assumed_model is not finite along the current "
                 "trajectory; the model cannot be linearised there"
             )
-        growth = np.abs(A).max(axis=(1, 2))
-        if growth.max() > _MAX_GROWTH:
+        growth = row_max_abs(A)
+        if growth.max(initial=0.0) > _MAX_GROWTH:
             # A perturbation that grows a million-fold within one interval
             # (a model with finite-time blow-up near the trajectory, or RK4
             # far outside its stability region) makes the linearisation, and
@@ -645,8 +649,10 @@ class MMESmoother(GaussNewton):
             )
         r = self.residuals(x, theta)
         H = self.measurement_jacobian(x)
+        # in place: phi is not needed beyond its defects
+        defects = np.subtract(phi, x[1:], out=phi)
         return Linearization(
-            x=x, d=d, theta=theta, A=A, G=G, B=B, defects=phi - x[1:], r=r, H=H
+            x=x, d=d, theta=theta, A=A, G=G, B=B, defects=defects, r=r, H=H
         )
 
     # ----------------------------------------------------------------- costs
@@ -878,7 +884,10 @@ class MMESmoother(GaussNewton):
             neg2_log_likelihood=res.neg2_log_likelihood
             - extra
             + 2.0 * (log_sy - records * log_det_s),
-            max_defect=float(np.max(np.abs(defects * s), initial=0.0)),
+            # max |defects * s| column by column (s > 0: the same number)
+            max_defect=float(
+                np.max([s[j] * max_abs(defects[:, j]) for j in range(self.n)])
+            ),
         )
 
     def _start_lin(self, start: SmootherResult | None):
