@@ -204,14 +204,24 @@ class GaussNewton:
         self, W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
     ):
         """Package the solution (internal units) with its costs."""
-        with np.errstate(all="ignore"):
-            r = self.residuals(x, theta)
+        at_lin = lin.x is x and lin.d is d and lin.theta is theta
+        if at_lin:
+            # The last linearisation is at the returned point (a linear
+            # problem's exact step, or max_iter after an accepted step): its
+            # residuals and defects are these, the same numbers (its flow's
+            # states are integrated as a flow without derivatives integrates
+            # them). A second pass over the record would only repeat them.
+            r, defects = lin.r, lin.defects
             meas = self.measurement_cost(r)
-            phi = self.flow(x, d, theta, jacobian=False)
-            # in place: phi itself is not needed (no second array its size)
-            defects = np.subtract(phi, x[1:], out=phi)
+        else:
+            with np.errstate(all="ignore"):
+                r = self.residuals(x, theta)
+                meas = self.measurement_cost(r)
+                phi = self.flow(x, d, theta, jacobian=False)
+                # in place: phi itself is not needed (no second array its size)
+                defects = np.subtract(phi, x[1:], out=phi)
         max_defect = max_abs(defects)
-        if lin.x is not x:
+        if not at_lin:
             # The last (sub-tolerance) step was taken without relinearising.
             # Keep A, G, B, H from just before it (they change by O(step))
             # with the exact defects and residuals at the returned point: a
