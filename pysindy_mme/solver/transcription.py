@@ -599,10 +599,15 @@ class MMESmoother(GaussNewton):
         limit = 1e6 * self.scale(x)
 
         def bad(sl):
+            # column by column: a reduction over each row's n entries would
+            # run numpy's inner loop n elements long
+            out = np.zeros(sl.stop - sl.start, dtype=bool)
             with np.errstate(all="ignore"):
-                part = phi[sl]
-                jump = np.abs(part - x[:-1][sl])
-                return ~np.isfinite(part).all(axis=1) | (jump.max(axis=1) > limit)
+                for j in range(phi.shape[1]):
+                    col = phi[sl, j]
+                    out |= ~np.isfinite(col)
+                    out |= np.abs(col - x[sl, j]) > limit
+            return out
 
         k = first_true(bad, phi.shape[0])
         if k >= 0:
@@ -725,8 +730,7 @@ class MMESmoother(GaussNewton):
                 Q[k0][np.ix_(idx, idx)] += info
         GW = S = None
         if self.q:
-            GW = lin.G @ Winv  # (N-1, n, q)
-            S = (GW @ np.swapaxes(lin.G, 1, 2)) / self._h_div[:, None, None]
+            GW, S = _error_blocks(lin.G, Winv, self._h_div)
         # the matrix depends on the linearisation's A (G, H) and on W only:
         # a fit's statistics at its last step's linearisation (the result
         # keeps its A) reuse that step's factor while no other was made
@@ -934,3 +938,25 @@ class MMESmoother(GaussNewton):
         if self.p and dtheta is not None:
             Hdx = Hdx + self._M @ dtheta
         return np.einsum("kab,kb->ka", self.Rinv, Hdx)
+
+
+def _error_blocks(G, Winv, h):
+    """``G W^-1`` (``(K, n, q)``) and ``S = G W^-1 G^T / h`` (``(K, n, n)``).
+
+    With one error state every entry is a single product: computed column
+    by column over the rows, the same numbers as numpy's batched matmul,
+    which pays a per-matrix overhead that dominates at this size (72 ms
+    against 11 for 10^6 rows of two states). Beyond, numpy's matmul.
+    """
+    if G.shape[2] != 1:
+        GW = G @ Winv
+        return GW, (GW @ np.swapaxes(G, 1, 2)) / h[:, None, None]
+    K, n, _ = G.shape
+    GW = np.multiply(G, Winv[0, 0])
+    S = np.empty((K, n, n))
+    for i in range(n):
+        for j in range(n):
+            out = S[:, i, j]
+            np.multiply(GW[:, i, 0], G[:, j, 0], out=out)
+            out /= h
+    return GW, S

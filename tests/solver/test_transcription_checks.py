@@ -5,7 +5,7 @@ import pytest
 
 from pysindy_mme.core.blockwise import BLOCK_ROWS
 from pysindy_mme.exceptions import DivergenceError
-from pysindy_mme.solver.transcription import MMESmoother
+from pysindy_mme.solver.transcription import MMESmoother, _error_blocks
 
 
 class _Stand:
@@ -36,3 +36,20 @@ def test_check_flow_passes_jumps_below_a_million_state_scales():
     x = np.zeros((N, 2))
     phi = np.full((N - 1, 2), 0.99e6)
     MMESmoother._check_flow(_Stand(N), phi, x)  # no error
+
+
+@pytest.mark.parametrize(
+    "K, n, q", [(1000, 2, 1), (5, 3, 1), (7, 4, 1), (100, 3, 2), (0, 2, 1)]
+)
+def test_error_blocks_are_numpys_batched_products(K, n, q):
+
+    rng = np.random.default_rng(K + n + q)
+    G = rng.standard_normal((K, n, q))
+    W = rng.standard_normal((q, q))
+    W = W @ W.T + np.eye(q)
+    h = rng.uniform(0.01, 0.1, K)
+    GW, S = _error_blocks(G, W, h)
+    expected = G @ W
+    np.testing.assert_array_equal(GW, expected)
+    batched = (expected @ np.swapaxes(G, 1, 2)) / h[:, None, None]
+    np.testing.assert_array_equal(S, batched)
