@@ -1,4 +1,4 @@
-"""Reductions over the rows of long arrays, block by block.
+"""Reductions over the rows of long arrays, without record-sized temporaries.
 
 A solver's checks on a record of 10^6 samples (the largest defect, whether
 every Jacobian is finite, how much each interval amplifies a perturbation)
@@ -9,7 +9,9 @@ process touching fresh memory pays a page fault per 4 KiB page: about
 2 ms per MB on the machines here, a tenth of a second for one Jacobian of two
 states at 10^6 samples, at every Gauss-Newton iteration. Here the same
 numbers come from blocks of ``BLOCK_ROWS`` rows, whose temporaries stay in
-cache and are reused.
+cache and are reused, or (one maximum per row) entry by entry over all rows:
+numpy runs its inner loop over an array's last axis, and a reduction over a
+row of two to four entries runs it that short.
 
 Every function gives exactly the answer of the whole-array expression it
 replaces, NaN included (a NaN anywhere makes the maximum NaN, as ``np.max``

@@ -212,7 +212,8 @@ class GaussNewton:
             # states are integrated as a flow without derivatives integrates
             # them). A second pass over the record would only repeat them.
             r, defects = lin.r, lin.defects
-            meas = self.measurement_cost(r)
+            with np.errstate(all="ignore"):
+                meas = self.measurement_cost(r)
         else:
             with np.errstate(all="ignore"):
                 r = self.residuals(x, theta)
