@@ -309,7 +309,7 @@ def rk4_flow(
     return FlowResult(X, D)
 
 
-#: the most multiply-adds ``n * n * m`` per row :func:`_small_matmul` does
+#: the most multiply-adds ``n * r * m`` per row :func:`_small_matmul` does
 #: element by element before numpy's batched matmul is faster (measured at
 #: 32,768 rows: n = 2, m = 5: 1.1 ms against 1.8; n = 3, m = 6: 3.2 against
 #: 1.9)
@@ -317,7 +317,7 @@ _ELEMENTWISE_MAX = 36
 
 
 def _small_matmul(J, D):
-    """``J @ D`` for stacks of small matrices, ``(K, n, n) @ (K, n, m)``.
+    """``J @ D`` for stacks of small matrices, ``(K, n, r) @ (K, r, m)``.
 
     numpy's batched matmul pays a per-matrix overhead (about 50 ns, 1.7 ms
     for 32,768 rows whatever the size) that dominates for a few states and
@@ -325,15 +325,16 @@ def _small_matmul(J, D):
     over the ``K`` rows: numpy's loops over views whose last axis has 2-5
     elements (``J[:, :, j, None] * D[:, None, j, :]``) are 3-6x slower.
     """
-    K, n, m = D.shape
-    if n * n * m > _ELEMENTWISE_MAX:
+    K, r, m = D.shape
+    n = J.shape[1]
+    if n * r * m > _ELEMENTWISE_MAX:
         return J @ D
     out = np.empty((K, n, m))
     for i in range(n):
         for c in range(m):
             o = out[:, i, c]
             np.multiply(J[:, i, 0], D[:, 0, c], out=o)
-            for j in range(1, n):
+            for j in range(1, r):
                 o += J[:, i, j] * D[:, j, c]
     return out
 

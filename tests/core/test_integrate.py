@@ -524,3 +524,18 @@ def test_small_matmul_equals_numpys_batched_matmul(n, m):
     # strided views (the flows pass slices of their arrays)
     Dw = rng.standard_normal((57, n, m + 3))[:, :, 1 : m + 1]
     np.testing.assert_allclose(_small_matmul(J, Dw), J @ Dw, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize(
+    "n, r, m", [(2, 1, 2), (3, 1, 3), (2, 3, 1), (4, 2, 3), (5, 4, 3)]
+)
+def test_small_matmul_with_a_rectangular_inner_dimension(n, r, m):
+    from pysindy_mme.core.integrate import _small_matmul
+
+    rng = np.random.default_rng(n * 100 + r * 10 + m)
+    J, D = rng.standard_normal((41, n, r)), rng.standard_normal((41, r, m))
+    out = _small_matmul(J, D)
+    assert out.shape == (41, n, m)
+    np.testing.assert_allclose(out, J @ D, rtol=1e-13, atol=1e-13)
+    if r == 1:  # single products: numpy's numbers exactly
+        np.testing.assert_array_equal(out, J @ D)
