@@ -8,7 +8,9 @@ and over 10 s at 100 kHz (issue 20). For every record length: the whole
 ``discover`` time and, on the same data in the same run, MME alone; exact
 terms (seeds: 20 up to 4,001 samples, 5 beyond, 1 at 10^6 samples: a study
 there takes minutes); the median largest coefficient error over the exact
-seeds; peak memory: ``tracemalloc`` (numpy allocations of one study) and
+seeds; at 10^6 samples the times and the study / MME ratio are medians of
+:data:`LARGE_PAIRS` interleaved pairs; peak memory: ``tracemalloc``
+(numpy allocations of one study) and
 the peak resident set of the row's process (``ru_maxrss``), per sample.
 
 Every row runs in a process of its own, so that one row's peak resident set
@@ -115,9 +117,17 @@ def resident_mib():
         return float("nan")
 
 
-def run_case(seconds, rate, n_seeds, folder, trace=True):
+#: timed (study, MME alone) pairs per seed at 10^6 samples: one seed runs
+#: there, and on this 2-core virtual machine the same study's wall time moved
+#: by 10 % between runs (25.4 to 28.1 s, session 21); the row reports the
+#: medians of interleaved pairs
+LARGE_PAIRS = 3
+
+
+def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
     """One row, in this process, on the records in ``folder``: times, exact
-    terms, peak memory.
+    terms, peak memory. ``pairs``: timed (study, MME alone) pairs per seed,
+    interleaved (the row's times are the medians over all of them).
 
     One untimed MME fit of seed 0 comes first. On this machine a process's
     first use of memory costs about 2 ms per MB (128 MB written for the
@@ -140,20 +150,28 @@ def run_case(seconds, rate, n_seeds, folder, trace=True):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 mme_alone(y, t, system)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res, sec, cpu = timed(lambda y=y, t=t: study(y, t, system))
-            _, sec_mme, cpu_mme = timed(lambda y=y, t=t: mme_alone(y, t, system))
-        t_study.append(sec)
-        t_mme.append(sec_mme)
-        c_study.append(cpu)
-        c_mme.append(cpu_mme)
+        for pair in range(pairs):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res, sec, cpu = timed(lambda y=y, t=t: study(y, t, system))
+                _, sec_mme, cpu_mme = timed(lambda y=y, t=t: mme_alone(y, t, system))
+            t_study.append(sec)
+            t_mme.append(sec_mme)
+            c_study.append(cpu)
+            c_mme.append(cpu_mme)
+            if seed == pair == 0:
+                # the peak of one study (and MME) in this process: a second
+                # study in the same process peaks higher (about 1.7 GB
+                # against 1.4 at 10^6 samples: the heap keeps freed fragments)
+                rss_first = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
         found = res.terms["x2"]
         if set(found) == set(TRUE):
             exact += 1
             errors.append(max(abs(found[k] - v) for k, v in TRUE.items()))
-    # the resident peak before tracemalloc's own bookkeeping inflates it
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
+    # the resident peak before tracemalloc's own bookkeeping inflates it:
+    # of the first pair (with several pairs, of all of them as well)
+    rss_all = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
+    rss = rss_first if pairs > 1 else rss_all
     peak = float("nan")
     if trace:
         y, t = read_record(folder, 0)
@@ -168,6 +186,7 @@ def run_case(seconds, rate, n_seeds, folder, trace=True):
         "rate": rate,
         "n": t.size,
         "seeds": n_seeds,
+        "pairs": pairs,
         "exact": exact,
         "error": float(np.median(errors)) if errors else float("nan"),
         "time": float(np.median(t_study)),
@@ -176,20 +195,27 @@ def run_case(seconds, rate, n_seeds, folder, trace=True):
         # ratio of two runs moves with the load; the CPU-time ratio less
         "cpu": float(np.median(c_study)),
         "cpu_mme": float(np.median(c_mme)),
+        # the median of the pairs' own ratios (each pair ran back to back)
+        "ratio": float(np.median(np.array(t_study) / np.array(t_mme))),
+        "ratio_range": [
+            float(np.min(np.array(t_study) / np.array(t_mme))),
+            float(np.max(np.array(t_study) / np.array(t_mme))),
+        ],
         "peak": peak,
         "rss": rss / 2**20,
+        "rss_all_pairs": rss_all / 2**20,
         "rss_before": before,
         "rss_per_sample": rss / t.size,
     }
 
 
-def run_in_subprocess(seconds, rate, n_seeds, trace):
+def run_in_subprocess(seconds, rate, n_seeds, trace, pairs=1):
     """:func:`run_case` in a fresh interpreter (its own peak resident set),
     on records this process simulates and writes first."""
     with tempfile.TemporaryDirectory() as folder:
         write_records(seconds, rate, n_seeds, folder)
         cmd = [sys.executable, __file__, "--row", str(seconds), str(rate)]
-        cmd += [str(n_seeds), "--records", folder]
+        cmd += [str(n_seeds), "--records", folder, "--pairs", str(pairs)]
         if not trace:
             cmd.append("--no-trace")
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
@@ -207,6 +233,7 @@ def main(argv=None):
     )
     parser.add_argument("--row", nargs=3, type=float, help=argparse.SUPPRESS)
     parser.add_argument("--no-trace", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--pairs", type=int, default=1, help=argparse.SUPPRESS)
     parser.add_argument(
         "--records",
         help="with --row: the folder of its records (default: simulated "
@@ -228,9 +255,13 @@ def main(argv=None):
                 # simulated by another process: not this one's heap
                 cmd = [sys.executable, __file__, "--write", *map(str, args.row)]
                 subprocess.run([*cmd, folder], check=True)
-                row = run_case(seconds, rate, n_seeds, folder, not args.no_trace)
+                row = run_case(
+                    seconds, rate, n_seeds, folder, not args.no_trace, args.pairs
+                )
         else:
-            row = run_case(seconds, rate, n_seeds, args.records, not args.no_trace)
+            row = run_case(
+                seconds, rate, n_seeds, args.records, not args.no_trace, args.pairs
+            )
         print(json.dumps(row))
         return
     cases = CASES[:3] if args.quick else CASES + (LARGE if args.large else [])
@@ -242,7 +273,13 @@ def main(argv=None):
         seeds = 20 if n <= 4_001 else 5 if n < 1_000_000 else 1
         # tracemalloc doubles a study's time: not at 10^6 samples (the
         # resident peak is the figure there)
-        row = run_in_subprocess(seconds, rate, seeds, trace=n < 1_000_000)
+        row = run_in_subprocess(
+            seconds,
+            rate,
+            seeds,
+            trace=n < 1_000_000,
+            pairs=LARGE_PAIRS if n >= 1_000_000 else 1,
+        )
         rows.append(row)
         print(
             f"{row['n']:>8} samples: {row['time']:.2f} s/study, MME {row['mme']:.2f} s,"
@@ -259,7 +296,7 @@ def main(argv=None):
         print(
             f"| {r['seconds']:,} s at {r['rate']:,} Hz | {r['n']:,} | "
             f"{r['exact']}/{r['seeds']} | {r['error']:.4f} | {r['time']:.2f} | "
-            f"{r['mme']:.2f} | {r['time'] / r['mme']:.1f} | "
+            f"{r['mme']:.2f} | {r['ratio']:.2f} | "
             f"{r['cpu'] / r['cpu_mme']:.1f} | {r['peak']:.0f} | "
             f"{r['rss']:.0f} | {r['rss_per_sample'] / 1024:.2f} | "
             f"{r['rss_before']:.0f} |"
@@ -305,9 +342,11 @@ def main(argv=None):
             if ten
             else ""
         )
+        low, high = r.get("ratio_range", [r["time"] / r["mme"]] * 2)
         print(
-            f"- {r['seconds']:,} s at {r['rate']:,} Hz: {r['time'] / r['mme']:.1f}x "
-            f"MME (<= 3; CPU time {r['cpu'] / r['cpu_mme']:.1f}x){growth}, "
+            f"- {r['seconds']:,} s at {r['rate']:,} Hz: {r['ratio']:.2f}x MME (<= 3; "
+            f"median of {r['pairs']} interleaved pairs, {low:.2f}-{high:.2f}; CPU "
+            f"time {r['cpu'] / r['cpu_mme']:.2f}x){growth}, "
             f"peak RSS {r['rss_per_sample'] / 1024:.2f} kB per sample (<= 1.5), "
             f"exact {r['exact']}/{r['seeds']}"
         )
