@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..core.blockwise import all_finite, max_abs
 from ..core.integrate import InputSignal
 from ..core.model import AsBase, ParametricModel, RatesAt
 from ..core.relaxation import Overflows, overflow_columns_of
@@ -510,10 +511,11 @@ class OutputErrorModel:
         # the solver's units (each state's own, about its noise sd): in the
         # user's units one state's defect would be judged by another's scale
         # (a velocity of 1e2 mm/s would excuse a defect of 1e-4 m).
+        # (blockwise: the solver's own checks, without record-sized temporaries)
         z = res._lin.x
-        bounded = np.all(np.isfinite(res.x)) and float(
-            np.max(np.abs(res._lin.defects), initial=0.0)
-        ) <= 1e-6 * max(1.0, float(np.max(np.abs(z), initial=0.0)))
+        bounded = all_finite(res.x) and max_abs(res._lin.defects) <= 1e-6 * max(
+            1.0, max_abs(z)
+        )
         # a fit during which some trial made the model blow up is not called
         # converged, even when the line search stepped back to a finite point
         converged = bool(res.converged and bounded and not res.nonfinite_trials)
