@@ -172,6 +172,7 @@ def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
     # of the first pair (with several pairs, of all of them as well)
     rss_all = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024.0
     rss = rss_first if pairs > 1 else rss_all
+    ratios = np.array(t_study) / np.array(t_mme)
     peak = float("nan")
     if trace:
         y, t = read_record(folder, 0)
@@ -196,11 +197,8 @@ def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
         "cpu": float(np.median(c_study)),
         "cpu_mme": float(np.median(c_mme)),
         # the median of the pairs' own ratios (each pair ran back to back)
-        "ratio": float(np.median(np.array(t_study) / np.array(t_mme))),
-        "ratio_range": [
-            float(np.min(np.array(t_study) / np.array(t_mme))),
-            float(np.max(np.array(t_study) / np.array(t_mme))),
-        ],
+        "ratio": float(np.median(ratios)),
+        "ratio_range": [float(np.min(ratios)), float(np.max(ratios))],
         "peak": peak,
         "rss": rss / 2**20,
         "rss_all_pairs": rss_all / 2**20,
