@@ -23,6 +23,7 @@ import numpy as np
 
 from ..core.blockwise import max_abs
 from ..exceptions import DivergenceError
+from .kkt import drop_kept_border
 from .records import SmootherResult
 
 __all__ = ["GaussNewton"]
@@ -99,6 +100,10 @@ class GaussNewton:
                 converged = True
                 message = "converged"
                 break
+            # not the last step: its K^-1 E (kept with the factor for the
+            # statistics of a converged fit) would sit beside the line
+            # search's flows and the next linearisation
+            drop_kept_border()
             start, unlinearisable = 1.0, None
             while True:
                 alpha, trial, merit, bad = self._line_search(

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import threading
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -47,6 +47,7 @@ __all__ = [
     "KKTFactor",
     "ReducedBorder",
     "as_border",
+    "drop_kept_border",
     "drop_kept_factor",
     "equilibrated_inverse",
     "keep_factor",
@@ -120,6 +121,15 @@ def drop_kept_factor() -> None:
     del dropped  # the factor dies here, outside the lock (_give_back locks)
 
 
+def drop_kept_border() -> None:
+    """Forget the border eliminated with the kept factor (see
+    :meth:`KKTFactor.keep_border`); the factor itself stays kept."""
+    with _KEPT_LOCK:
+        kept = _KEPT[0][1] if _KEPT else None
+    if kept is not None:
+        kept.border = None
+
+
 def _weakrefable(obj) -> bool:
     try:
         weakref.ref(obj)
@@ -170,6 +180,39 @@ class KKTFactor:
     N: int
     logdet: float
     pivot_ratio: float
+    #: ``(B, Ex, KEt, EtKE)``: a border ``E`` (by its blocks, compared by
+    #: identity) eliminated with this factor, ``K^-1 E`` as ``(p, N 2n)``
+    #: rows and ``E^T K^-1 E`` (see :meth:`eliminated`)
+    border: tuple | None = field(default=None, repr=False, compare=False)
+
+    def keep_border(self, E, KEt, EtKE) -> None:
+        """Keep ``K^-1 E`` (``KEt``, ``(p, N 2n)``) and ``E^T K^-1 E`` for
+        later solves with the same border (:meth:`eliminated`).
+
+        A fit's statistics (covariance, score tests, the integrator check)
+        solve the bordered system of its last Gauss-Newton step again, with
+        the same factor and border: kept, the ``p`` columns of the border
+        are not solved again (on a long record each statistic solved them
+        anew, a banded solve of ``p`` columns and a copy of the border).
+        Only a :class:`Border` (its blocks are the linearisation's arrays,
+        so identity says it is the same border) is kept.
+        """
+        if type(E) is Border:
+            self.border = (E.B, E.Ex, KEt, EtKE)
+
+    def eliminated(self, E):
+        """``(K^-1 E as (p, N 2n), E^T K^-1 E)`` for ``E`` kept by
+        :meth:`keep_border` or a column subset of it, else None."""
+        if self.border is None or not isinstance(E, Border):
+            return None
+        B, Ex, KEt, EtKE = self.border
+        if E.B is B and E.Ex is Ex:
+            return KEt, EtKE
+        parent, keep = getattr(E, "parent", (None, None))
+        if parent is not None and parent.B is B and parent.Ex is Ex:
+            keep = np.arange(EtKE.shape[0])[keep]
+            return KEt[keep], EtKE[np.ix_(keep, keep)]
+        return None
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``."""
@@ -371,6 +414,9 @@ class Border:
     long record's fit).
     """
 
+    #: ``(border, keep)`` when this one is ``border.columns(keep)``
+    parent: tuple = (None, None)
+
     def __init__(self, Ex, B, N: int, n: int, p: int):
         self.Ex, self.B = Ex, B
         self.N, self.n, self.p = N, n, p
@@ -421,7 +467,10 @@ class Border:
         """The border of the parameters ``keep`` (a mask or indices)."""
         Ex = None if self.Ex is None else self.Ex[:, :, keep]
         B = self.B[:, :, keep]
-        return Border(Ex, B, self.N, self.n, B.shape[2])
+        out = Border(Ex, B, self.N, self.n, B.shape[2])
+        # a factor that eliminated this border serves the subset too
+        out.parent = (self, keep)
+        return out
 
 
 class _DenseBorder(Border):
@@ -490,12 +539,18 @@ class ReducedBorder:
         self.fac, self.p = fac, D.shape[0]
         self._E = as_border(E)
         N, m = fac.N, 2 * fac.n
-        # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
-        self._KEt = np.empty((self.p, N, m))
-        self._E.write_transposed(self._KEt)
-        if self.p:
-            fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
-        Sc = D - self._E.t_dot(self._KEt)
+        kept = fac.eliminated(self._E) if self.p else None
+        if kept is not None:
+            KEt, EtKE = kept
+            self._KEt = KEt.reshape(self.p, N, m)
+        else:
+            # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
+            self._KEt = np.empty((self.p, N, m))
+            self._E.write_transposed(self._KEt)
+            if self.p:
+                fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
+            EtKE = self._E.t_dot(self._KEt)
+        Sc = D - EtKE
         self.Sc = 0.5 * (Sc + Sc.T)
         self._inverse, self.rank_deficient = (
             equilibrated_inverse(self.Sc) if self.p else (self.Sc, False)
@@ -519,13 +574,17 @@ class ReducedBorder:
         return dtheta
 
 
-def solve_reduced(fac: KKTFactor, E, D, b, c, rows=None) -> ReducedSolution:
+def solve_reduced(
+    fac: KKTFactor, E, D, b, c, rows=None, keep_border: bool = False
+) -> ReducedSolution:
     """Solve the bordered system for ``b (N, 2n[, k])`` and ``c (p[, k])``.
 
     ``E`` has shape ``(N, 2n, p)``, ``D`` ``(p, p)``. ``rows`` (a slice of
     the samples) returns only those samples of ``z``: the covariance of the
     initial state needs sample 0 of ``n`` solutions, not ``n`` copies of the
-    record.
+    record. ``keep_border``: keep ``K^-1 E`` with ``fac`` for later solves
+    with the same border (:meth:`KKTFactor.keep_border`); a border kept
+    already is used instead of being solved again.
     """
     p = D.shape[0]
     if p == 0:
@@ -545,12 +604,23 @@ def solve_reduced(fac: KKTFactor, E, D, b, c, rows=None) -> ReducedSolution:
     # views, and BLAS multiplies them as they lie (no C-ordered copies of
     # k + p columns of the record beside it: at the peak of a study that
     # was 192 bytes per sample of two states).
-    work = np.empty((k + p, rows_all))
+    kept = fac.eliminated(E)
+    work = np.empty((k + (p if kept is None else 0), rows_all))
     work[:k] = bb.reshape(rows_all, k).T
-    E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
+    if kept is None:
+        E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
     fac.solve_in_place(work.T)
-    Kbt, KEt = work[:k], work[k:]  # (k, rows) and (p, rows): K^-1 b, K^-1 E
-    Sc = D - E.t_dot(KEt.reshape(p, fac.N, 2 * fac.n))
+    if kept is None:
+        Kbt, KEt = work[:k], work[k:]  # (k, rows), (p, rows): K^-1 b, K^-1 E
+        EtKE = E.t_dot(KEt.reshape(p, fac.N, 2 * fac.n))
+        if keep_border:
+            # its rows stay in ``work``: with one right-hand side (a Gauss-
+            # Newton step) that is k rows more than K^-1 E alone, where a
+            # copy of K^-1 E would be a second array its size for a moment
+            fac.keep_border(E, KEt, EtKE)
+    else:
+        Kbt, (KEt, EtKE) = work, kept
+    Sc = D - EtKE
     Sc = 0.5 * (Sc + Sc.T)
     inverse, deficient = equilibrated_inverse(Sc)
     dtheta = inverse @ (cc - E.t_dot(Kbt.reshape(k, fac.N, 2 * fac.n)))

@@ -779,7 +779,10 @@ class MMESmoother(GaussNewton):
             if self.p
             else np.zeros(0)
         )
-        sol = solve_reduced(fac, E, D, rhs, c)
+        # K^-1 E stays with the factor until the iteration knows whether
+        # this step is the last (GaussNewton._solve): at a converged fit the
+        # statistics that follow solve the same bordered system again
+        sol = solve_reduced(fac, E, D, rhs, c, keep_border=True)
         z, dtheta, active = sol.z, sol.dtheta, None
         if self.theta_bounds is not None:
             z, dtheta, active = self._bounded_step(fac, E, D, rhs, c, sol, lin.theta)

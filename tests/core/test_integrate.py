@@ -539,3 +539,49 @@ def test_small_matmul_with_a_rectangular_inner_dimension(n, r, m):
     np.testing.assert_allclose(out, J @ D, rtol=1e-13, atol=1e-13)
     if r == 1:  # single products: numpy's numbers exactly
         np.testing.assert_array_equal(out, J @ D)
+
+
+def _extended_vdp():
+    """Van der Pol as an ignorance model plus a fitted cubic correction."""
+    import pysindy as ps
+
+    from pysindy_mme import ExtendedModel
+
+    t = np.linspace(0.0, 10.0, 401)
+    lib = ps.PolynomialLibrary(degree=3).fit(np.column_stack([np.cos(t), np.sin(t)]))
+    names = lib.get_feature_names(["x1", "x2"])
+    coef = np.zeros((2, len(names)))
+    for name, c in {"x1": -1.0, "x2": 1.0, "x1^2 x2": -1.0}.items():
+        coef[1, names.index(name)] = c
+
+    def assumed(x, t):
+        return np.column_stack([x[:, 1], np.zeros(len(x))])
+
+    return ExtendedModel(assumed, lib, coef, ["x1", "x2"])
+
+
+def test_an_extended_models_bare_jacobian_is_the_closed_form():
+    # Van der Pol's Jacobian, [[0, 1], [-1 - 2 x1 x2, 1 - x1^2]]: the
+    # assumed part by central differences, the correction exact
+    rates = _extended_vdp().unchecked()
+    X = np.random.default_rng(4).uniform(-3, 3, (50, 2))
+    x1, x2 = X[:, 0], X[:, 1]
+    ref = np.zeros((50, 2, 2))
+    ref[:, 0, 1] = 1.0
+    ref[:, 1, 0] = -1.0 - 2.0 * x1 * x2
+    ref[:, 1, 1] = 1.0 - x1**2
+    got = rates.jacobian(X, np.zeros(50), None, scale=np.ones(2))
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
+
+
+def test_simulate_guided_runs_an_extended_model_as_simulate_does():
+    # the guided run of an ExtendedModel (its bare form, its own Jacobian)
+    # is the sequential RK4 run of the same right-hand side
+    model = _extended_vdp()
+    t = np.arange(400) * 0.025
+    x0 = np.array([2.0, 0.0])
+    free = simulate(_rows(_vdp), x0, t, substeps=2)
+    guess = free.x[0] + 0.05 * np.random.default_rng(1).standard_normal((t.size, 2))
+    guided = simulate_guided(model, x0, t, None, 2, guess)
+    assert guided.diverged_at[0] == -1
+    np.testing.assert_allclose(guided.x[0], free.x[0], rtol=0, atol=1e-10)

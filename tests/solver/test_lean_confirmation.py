@@ -528,3 +528,106 @@ def test_a_fit_loaded_from_a_file_refuses_score_tests(record):
     np.testing.assert_array_equal(loaded.covariance, fit.covariance)
     with pytest.raises(ValueError, match="loaded from a file"):
         engine.scores(loaded, [(1, 3)])
+
+
+@pytest.mark.parametrize("offsets", [False, True])
+def test_a_kept_border_serves_later_solves_and_its_subsets(offsets):
+    # K^-1 E kept with the factor by one bordered solve (a Gauss-Newton
+    # step) serves later solves with the same border, or with some of its
+    # parameters (a parameter held on a bound), and the border eliminated
+    # for score tests: against the dense bordered system, and with only the
+    # right-hand sides' columns solved
+    N, n, p = 30, 2, 3
+    Q, A, S, _, D = _bordered(N, n, p, 21)
+    rng = np.random.default_rng(22)
+    Ex = rng.standard_normal((N, n, p)) if offsets else None
+    border = kkt.Border(Ex, rng.standard_normal((N - 1, n, p)), N, n, p)
+    E = border.dense()
+    fac = BandedKKT(N, n).factor(Q, A, S)
+    first = kkt.solve_reduced(
+        fac, border, D, rng.standard_normal((N, 2 * n)), np.zeros(p), keep_border=True
+    )
+    assert fac.border is not None
+    solved = []
+    solve = fac.solve_in_place
+
+    def counting(cols):
+        solved.append(cols.shape[1])
+        return solve(cols)
+
+    fac.solve_in_place = counting
+    b, c = rng.standard_normal((N, 2 * n, 2)), rng.standard_normal((p, 2))
+    for keep in (np.ones(p, bool), np.array([True, False, True])):
+        Ek, Dk = (border, D) if keep.all() else (border.columns(keep), D[keep][:, keep])
+        Ef = E[:, :, keep].reshape(-1, keep.sum())
+        big = np.block([[_dense_kkt(Q, A, S), Ef], [Ef.T, Dk]])
+        ref = np.linalg.solve(big, np.concatenate([b.reshape(-1, 2), c[keep]]))
+        got = kkt.solve_reduced(fac, Ek, Dk, b, c[keep])
+        np.testing.assert_allclose(got.z.reshape(-1, 2), ref[: -keep.sum()], atol=1e-10)
+        np.testing.assert_allclose(got.dtheta, ref[-keep.sum() :], atol=1e-10)
+        reduced = kkt.ReducedBorder(fac, Ek, Dk)
+        np.testing.assert_allclose(reduced.Sc, got.Sc, rtol=1e-12)
+        cols = reduced.new_columns(2)
+        cols[:] = np.moveaxis(b, 2, 0)
+        dtheta = reduced.solve_columns(cols, c[keep])
+        np.testing.assert_allclose(dtheta, ref[-keep.sum() :], atol=1e-10)
+    # only the right-hand sides were solved: 2 columns each time
+    assert solved == [2, 2, 2, 2]
+    # the first solve's Sc is the same numbers as a fresh elimination's
+    fresh = BandedKKT(N, n).factor(Q, A, S)
+    np.testing.assert_array_equal(
+        kkt.solve_reduced(fresh, border, D, b, c).Sc, first.Sc
+    )
+    # a dense border is never kept (its identity says nothing of its values)
+    other = BandedKKT(N, n).factor(Q, A, S)
+    kkt.solve_reduced(other, E, D, b, c, keep_border=True)
+    assert other.border is None
+
+
+def test_a_converged_fit_keeps_its_border_and_an_unfinished_step_does_not(
+    record, monkeypatch
+):
+    # The last Gauss-Newton step of a converged fit keeps K^-1 E with its
+    # factor: the covariance then solves only the initial state's columns
+    # and the score tests only the candidates' (the same numbers as with
+    # the border solved again). A step that is not the last drops it before
+    # the line search and the next linearisation.
+    engine, data = record
+    slots = [(1, 1), (1, 2), (1, 7)]
+    smoother = type(engine._solver(slots, np.zeros(3), 1, 1e-9))
+    linearize = smoother.linearize
+    borders = []  # the kept factor's border at each later linearisation
+
+    def watching(self, *args, **kwargs):
+        with kkt._KEPT_LOCK:
+            kept = kkt._KEPT[0][1] if kkt._KEPT else None
+        if kept is not None:
+            borders.append(kept.border)
+        return linearize(self, *args, **kwargs)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(smoother, "linearize", watching)
+        unfinished = engine.fit(slots, np.array([-0.5, 0.5, -0.5]), data.x, max_iter=3)
+    assert not unfinished.converged
+    assert len(borders) >= 2 and all(b is None for b in borders)
+    fit = engine.fit(slots, np.array([-1.0, 1.0, -1.0]), data.x, tol=1e-9)
+    assert fit.converged
+    solver, res = fit._state
+    fac = solver.kkt_system(res._lin)[0]
+    assert fac.border is not None
+    widths = []
+    solve = kkt.KKTFactor.solve_in_place
+
+    def counting(self, cols):
+        widths.append(cols.shape[1])
+        return solve(self, cols)
+
+    monkeypatch.setattr(kkt.KKTFactor, "solve_in_place", counting)
+    cov = fit.covariance.copy()
+    pool = [(1, c) for c in (0, 3, 9)]
+    scores = engine.scores(fit, pool)
+    assert widths == [2, 3]  # the initial state's columns; the candidates'
+    kkt.drop_kept_border()
+    fit._cov = None
+    np.testing.assert_allclose(fit.covariance, cov, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(engine.scores(fit, pool)[0], scores[0], rtol=1e-10)
