@@ -180,9 +180,9 @@ class KKTFactor:
     N: int
     logdet: float
     pivot_ratio: float
-    #: ``(B, Ex, KEt, EtKE)``: a border ``E`` (by its blocks, compared by
-    #: identity) eliminated with this factor, ``K^-1 E`` as ``(p, N 2n)``
-    #: rows and ``E^T K^-1 E`` (see :meth:`eliminated`)
+    #: ``(weak reference to B, KEt, EtKE)``: a border ``E`` (its block
+    #: ``B``, compared by identity) eliminated with this factor, ``K^-1 E``
+    #: as ``(p, N 2n)`` rows and ``E^T K^-1 E`` (see :meth:`eliminated`)
     border: tuple | None = field(default=None, repr=False, compare=False)
 
     def keep_border(self, E, KEt, EtKE) -> None:
@@ -194,22 +194,39 @@ class KKTFactor:
         the same factor and border: kept, the ``p`` columns of the border
         are not solved again (on a long record each statistic solved them
         anew, a banded solve of ``p`` columns and a copy of the border).
-        Only a :class:`Border` (its blocks are the linearisation's arrays,
-        so identity says it is the same border) is kept.
+        Only a :class:`Border` without offsets' rows is kept: its block
+        ``B`` is the linearisation's own array, so identity says it is the
+        same border (the offsets' rows are a product made anew at each
+        call). It is forgotten when ``B`` dies: a fit that releases its
+        linearisation (``keep_statistics``) releases it too, instead of it
+        sitting, with the kept band, beside the next linearisation (at 10^6
+        samples that was the study's peak).
         """
-        if type(E) is Border:
-            self.border = (E.B, E.Ex, KEt, EtKE)
+        if type(E) is not Border or E.Ex is not None:
+            return
+        me = weakref.ref(self)
+
+        def forget(_, me=me):
+            fac = me()
+            if fac is not None:
+                fac.border = None
+
+        self.border = (weakref.ref(E.B, forget), KEt, EtKE)
 
     def eliminated(self, E):
         """``(K^-1 E as (p, N 2n), E^T K^-1 E)`` for ``E`` kept by
         :meth:`keep_border` or a column subset of it, else None."""
-        if self.border is None or not isinstance(E, Border):
+        border = self.border
+        if border is None or not isinstance(E, Border) or E.Ex is not None:
             return None
-        B, Ex, KEt, EtKE = self.border
-        if E.B is B and E.Ex is Ex:
+        ref, KEt, EtKE = border
+        B = ref()
+        if B is None:
+            return None
+        if E.B is B:
             return KEt, EtKE
-        parent, keep = getattr(E, "parent", (None, None))
-        if parent is not None and parent.B is B and parent.Ex is Ex:
+        parent, keep = E.parent
+        if parent is not None and parent.B is B and parent.Ex is None:
             keep = np.arange(EtKE.shape[0])[keep]
             return KEt[keep], EtKE[np.ix_(keep, keep)]
         return None
