@@ -585,3 +585,70 @@ def test_simulate_guided_runs_an_extended_model_as_simulate_does():
     guided = simulate_guided(model, x0, t, None, 2, guess)
     assert guided.diverged_at[0] == -1
     np.testing.assert_allclose(guided.x[0], free.x[0], rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("n", [3, 8])
+def test_rk4_flow_derivatives_of_many_states_equal_the_textbook_stages(n):
+    # The stages' Jacobians multiply the derivatives entry by entry over the
+    # rows for a few states and by numpy's batched product beyond
+    # (_ROWWISE_MAX_STATES): both against the stage-by-stage einsum, with a
+    # per-interval parameter Jacobian and a constant one
+    rng = np.random.default_rng(n)
+    W = 0.4 * rng.standard_normal((n, n))
+    P = rng.standard_normal((n, 2))
+
+    def rhs(z, s, u, p=(0.7, -0.3)):
+        return np.tanh(z @ W.T) + p[0] * z[:, :1] * P[:, 0] + p[1] * P[:, 1]
+
+    def jac_x(z, s, u):
+        J = (1 - np.tanh(z @ W.T) ** 2)[:, :, None] * W[None]
+        J[:, :, 0] += 0.7 * P[:, 0]
+        return J
+
+    def jac_p(z, s, u):
+        return np.stack([z[:, :1] * P[:, 0], np.broadcast_to(P[:, 1], z.shape)], 2)
+
+    K, substeps = 30, 2
+    x = rng.standard_normal((K, n))
+    t = np.arange(K + 1) * 0.05
+    h = np.diff(t)
+    res = rk4_flow(
+        rhs, x, t[:-1], h, lambda frac: None, substeps, jac_x, jac_p, n_params=2
+    )
+    X = x.copy()
+    D = np.concatenate([np.repeat(np.eye(n)[None], K, 0), np.zeros((K, n, 2))], 2)
+    hs = (h / substeps)[:, None]
+    H = hs[:, :, None]
+
+    def dstage(Xs, Dpre):
+        return np.einsum("kij,kjm->kim", jac_x(Xs, 0, None), Dpre) + np.concatenate(
+            [np.zeros((K, n, n)), jac_p(Xs, 0, None)], 2
+        )
+
+    for _ in range(substeps):
+        k1, d1 = rhs(X, 0, None), dstage(X, D)
+        X2, D2 = X + 0.5 * hs * k1, D + 0.5 * H * d1
+        k2, d2 = rhs(X2, 0, None), dstage(X2, D2)
+        X3, D3 = X + 0.5 * hs * k2, D + 0.5 * H * d2
+        k3, d3 = rhs(X3, 0, None), dstage(X3, D3)
+        X4, D4 = X + hs * k3, D + H * d3
+        k4, d4 = rhs(X4, 0, None), dstage(X4, D4)
+        X = X + hs / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        D = D + H / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+    np.testing.assert_allclose(res.phi, X, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(res.D, D, rtol=1e-13, atol=1e-13)
+    assert res.D.flags.c_contiguous and res.D.shape == (K, n, n + 2)
+    # the parameters' columns alone (score tests' candidates): the same
+    lean = rk4_flow(
+        rhs,
+        x,
+        t[:-1],
+        h,
+        lambda frac: None,
+        substeps,
+        jac_x,
+        jac_p,
+        n_params=2,
+        state_columns=False,
+    )
+    np.testing.assert_allclose(lean.D, res.D[:, :, n:], rtol=1e-13, atol=1e-15)
