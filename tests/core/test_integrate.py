@@ -18,6 +18,7 @@
 
 import numpy as np
 import pytest
+from extended_case import vdp_extended_model
 from scipy.integrate import solve_ivp
 
 from pysindy_mme.core.integrate import (
@@ -542,22 +543,7 @@ def test_small_matmul_with_a_rectangular_inner_dimension(n, r, m):
 
 
 def _extended_vdp():
-    """Van der Pol as an ignorance model plus a fitted cubic correction."""
-    import pysindy as ps
-
-    from pysindy_mme import ExtendedModel
-
-    t = np.linspace(0.0, 10.0, 401)
-    lib = ps.PolynomialLibrary(degree=3).fit(np.column_stack([np.cos(t), np.sin(t)]))
-    names = lib.get_feature_names(["x1", "x2"])
-    coef = np.zeros((2, len(names)))
-    for name, c in {"x1": -1.0, "x2": 1.0, "x1^2 x2": -1.0}.items():
-        coef[1, names.index(name)] = c
-
-    def assumed(x, t):
-        return np.column_stack([x[:, 1], np.zeros(len(x))])
-
-    return ExtendedModel(assumed, lib, coef, ["x1", "x2"])
+    return vdp_extended_model()[0]
 
 
 def test_an_extended_models_bare_jacobian_is_the_closed_form():

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 import pysindy as ps
 import pytest
+from extended_case import vdp_extended_model
 
 from pysindy_mme import (
     DiscoveryWarning,
@@ -198,19 +199,7 @@ def test_auto_integrates_a_kinked_correction_with_rk4(axis):
     )
 
 
-def _vdp_model(library=None):
-    t = np.linspace(0.0, 10.0, 401)
-    x = np.column_stack([2.0 * np.cos(t), -2.0 * np.sin(t)])
-    lib = (library or ps.PolynomialLibrary(degree=3)).fit(x)
-    names = lib.get_feature_names(["x1", "x2"])
-    coef = np.zeros((2, len(names)))
-    for name, c in {"x1": -1.0, "x2": 1.0, "x1^2 x2": -1.0}.items():
-        coef[1, names.index(name)] = c
-
-    def assumed(x, t):
-        return np.column_stack([x[:, 1], np.zeros(len(x))])
-
-    return ExtendedModel(assumed, lib, coef, ["x1", "x2"]), t
+_vdp_model = vdp_extended_model
 
 
 def test_auto_integrates_a_smooth_correction_with_lsoda():
