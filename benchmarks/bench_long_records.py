@@ -26,14 +26,16 @@ the study (interpreter, numpy/scipy/scikit-learn/pysindy, the record): about
 Run: ``python benchmarks/bench_long_records.py`` (about 15 minutes on 2
 cores; ``--quick`` for the first three rows only; ``--large`` adds the two
 10^6-sample rows, about 15 minutes more; ``--only N ...`` runs the rows of
-those sample counts). Prints a markdown table and the targets of issues 9
-and 20.
+those sample counts). Prints a markdown table, at 10^6 samples the study's stages
+(from its own log: input checks, assumed fit, MME, proposals, confirmation, gain,
+report), and the targets of issues 9 and 20.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import resource
 import subprocess
@@ -93,6 +95,63 @@ def timed(fn):
     return out, time.perf_counter() - start, time.process_time() - cpu
 
 
+#: the study's stages as its log names them (``pysindy_mme`` logger, INFO):
+#: each stage's time runs from the message before to its own
+STAGES = [
+    ("checked:", "input checks"),
+    ("1. assumed model", "assumed fit"),
+    ("2. MME", "MME"),
+    ("3. regression", "proposals"),
+    ("4. confirmed", "confirmation"),
+    ("5. gain measured", "gain"),
+]
+
+
+class StageClock(logging.Handler):
+    """Wall times of a study's stages, from the package's own stage log.
+
+    Attached to the ``pysindy_mme`` logger for one study: the INFO messages
+    of :func:`~pysindy_mme.discover` mark the end of each stage (see
+    :data:`STAGES`); what follows the last one (the memory test, the
+    conclusion) is "report". Costs nothing measurable: six messages.
+    """
+
+    def __init__(self):
+        super().__init__(level=logging.INFO)
+        self.marks = []
+
+    def emit(self, record):
+        if record.levelno == logging.INFO:
+            self.marks.append((time.perf_counter(), record.getMessage()))
+
+    def timed_study(self, fn):
+        """``timed(fn)`` with the stages of the study it runs recorded."""
+        logger = logging.getLogger("pysindy_mme")
+        level = logger.level
+        logger.addHandler(self)
+        logger.setLevel(logging.INFO)
+        self.marks = []
+        try:
+            start = time.perf_counter()
+            out = timed(fn)
+            end = time.perf_counter()
+        finally:
+            logger.removeHandler(self)
+            logger.setLevel(level)
+        return out, self.durations(start, end)
+
+    def durations(self, start, end) -> dict:
+        """``{stage: seconds}``; a stage whose message is missing is left out."""
+        out, last = {}, start
+        for prefix, name in STAGES:
+            at = [t for t, msg in self.marks if msg.startswith(prefix)]
+            if at:
+                out[name] = at[0] - last
+                last = at[0]
+        out["report"] = end - last
+        return out
+
+
 def write_records(seconds, rate, n_seeds, folder):
     """Seeds ``0 .. n_seeds - 1`` of the row as ``y{seed}.npy`` and
     ``t.npy`` in ``folder`` (the measurements only)."""
@@ -141,6 +200,8 @@ def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
     """
     system = van_der_pol()
     exact, errors, t_study, t_mme, c_study, c_mme = 0, [], [], [], [], []
+    stages = []
+    clock = StageClock()
     before = float("nan")
     for seed in range(n_seeds):
         y, t = read_record(folder, seed)
@@ -153,10 +214,13 @@ def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
         for pair in range(pairs):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                res, sec, cpu = timed(lambda y=y, t=t: study(y, t, system))
+                (res, sec, cpu), split = clock.timed_study(
+                    lambda y=y, t=t: study(y, t, system)
+                )
                 _, sec_mme, cpu_mme = timed(lambda y=y, t=t: mme_alone(y, t, system))
             t_study.append(sec)
             t_mme.append(sec_mme)
+            stages.append(split)
             c_study.append(cpu)
             c_mme.append(cpu_mme)
             if seed == pair == 0:
@@ -204,6 +268,11 @@ def run_case(seconds, rate, n_seeds, folder, trace=True, pairs=1):
         "rss_all_pairs": rss_all / 2**20,
         "rss_before": before,
         "rss_per_sample": rss / t.size,
+        # the median of each stage over the pairs (seconds)
+        "stages": {
+            name: float(np.median([st[name] for st in stages if name in st]))
+            for name in stages[0]
+        },
     }
 
 
@@ -326,6 +395,18 @@ def main(argv=None):
 
     big = [r for r in rows if r["n"] >= 1_000_000]
     if big:
+        # where the study's time goes, against MME alone (issue 20: the study
+        # at most 3x MME alone)
+        names = list(big[0]["stages"])
+        print("\nStages of the study (s, median over the pairs; from its log):\n")
+        print("| record | " + " | ".join(names) + " | study | MME alone |")
+        print("|---|" + "---:|" * (len(names) + 2))
+        for r in big:
+            cells = " | ".join(f"{r['stages'].get(k, float('nan')):.2f}" for k in names)
+            print(
+                f"| {r['seconds']:,} s at {r['rate']:,} Hz | {cells} | "
+                f"{r['time']:.2f} | {r['mme']:.2f} |"
+            )
         print("\nTargets (issue 20):")
     for r in big:
         # the row of 10^5 samples at the same rate or over the same time
