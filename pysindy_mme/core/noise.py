@@ -69,6 +69,8 @@ measurement error, and the user has to state the noise.
 
 from __future__ import annotations
 
+import hashlib
+import threading
 import warnings
 from dataclasses import dataclass, replace
 from math import comb
@@ -322,6 +324,29 @@ def quantisation_step(col) -> float:
     x = x[np.isfinite(x)]
     if x.size == 0:
         return float("nan")
+    # A study asks twice for each channel (the clipping check and the noise
+    # estimate), an O(n log n) sort each time: 0.15 s per channel at 10^6
+    # samples. The answer is kept for the last few channels, by content.
+    key = (x.size, hashlib.blake2b(x.tobytes(), digest_size=16).digest())
+    with _STEP_LOCK:
+        if key in _STEPS:
+            return _STEPS[key]
+    step = _quantisation_step(x)
+    with _STEP_LOCK:
+        _STEPS[key] = step
+        while len(_STEPS) > _STEPS_KEPT:
+            del _STEPS[next(iter(_STEPS))]  # the oldest
+    return step
+
+
+#: channels whose quantisation step is kept (see :func:`quantisation_step`)
+_STEPS_KEPT = 8
+_STEPS: dict = {}
+_STEP_LOCK = threading.Lock()
+
+
+def _quantisation_step(x) -> float:
+    """:func:`quantisation_step` of the finite values ``x`` (not kept)."""
     u, counts = np.unique(x, return_counts=True)
     scale = float(np.max(np.abs(u)))
     tau = 8.0 * _EPS * scale  # rounding error of a difference of two values

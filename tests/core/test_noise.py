@@ -490,3 +490,35 @@ def test_describe_noise():
     assert "channel 0" in text and "channel 1" in text
     assert text.count("quantised") == 1
     assert describe_noise(np.diag([1e-6, 4e-6]), None) == "stated: sd 0.001, 0.002"
+
+
+def test_a_channels_quantisation_step_is_computed_once_and_kept_by_content(
+    monkeypatch,
+):
+    # a study asks for each channel's step twice (clipping check, noise
+    # estimate): the second answer is the kept one, for the same values
+    # only (NaN and inf ignored, as the step ignores them), and only a few
+    # channels are kept
+    from pysindy_mme.core import noise
+
+    rng = np.random.default_rng(7)
+    grid = np.round(rng.normal(size=2000) / 0.01) * 0.01
+    calls = []
+    inner = noise._quantisation_step
+    monkeypatch.setattr(
+        noise, "_quantisation_step", lambda x: calls.append(x.size) or inner(x)
+    )
+    noise._STEPS.clear()
+    first = quantisation_step(grid)
+    with_nan = grid.copy()
+    with_nan[[5, 50]] = np.nan
+    assert first == pytest.approx(0.01, rel=1e-9)
+    assert quantisation_step(grid.copy()) == first
+    assert len(calls) == 1
+    # other values: computed (a continuous channel: no grid)
+    assert np.isnan(quantisation_step(grid + 1e-5 * rng.normal(size=2000)))
+    assert quantisation_step(with_nan) == pytest.approx(0.01, rel=1e-9)
+    assert len(calls) == 3
+    for k in range(noise._STEPS_KEPT + 2):
+        quantisation_step(grid * (k + 2))
+    assert len(noise._STEPS) == noise._STEPS_KEPT
