@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .jacobian import rowwise_jacobian
+from .jacobian import column_scale, rowwise_jacobian
 from .relaxation import split_form
 
 __all__ = [
@@ -252,18 +252,7 @@ def rk4_flow(
             D[i, i] = 1.0
 
     def derivative(Xs, s, us, Dpre):
-        J = jac_x(Xs, s, us)
-        if n > _ROWWISE_MAX_STATES:
-            # n^2 passes over the rows cost more than numpy's batched
-            # product from here on (measured at 32,768 rows: 6 states 11
-            # against 12 ms, 8 states 36 against 15 ms)
-            dk = np.ascontiguousarray(np.moveaxis(J @ np.moveaxis(Dpre, 2, 0), 0, 2))
-        else:
-            dk = np.empty_like(Dpre)
-            for i in range(n):
-                np.multiply(J[:, i, 0], Dpre[0], out=dk[i])
-                for j in range(1, n):
-                    dk[i] += J[:, i, j] * Dpre[j]
+        dk = _rowwise_matmul(jac_x(Xs, s, us), Dpre)
         if p:
             jp = jac_p(Xs, s, us)
             if jp.ndim == 2:  # (n, p): the same for every interval
@@ -337,10 +326,31 @@ def rk4_flow(
     return FlowResult(X, D)
 
 
-#: states up to which :func:`rk4_flow` multiplies the stages' Jacobians into
-#: the derivatives entry by entry over the rows (beyond: numpy's batched
-#: product)
+#: states up to which :func:`_rowwise_matmul` multiplies entry by entry over
+#: the rows (beyond: numpy's batched product)
 _ROWWISE_MAX_STATES = 6
+
+
+def _rowwise_matmul(J, D):
+    """``J @ D`` for ``J (K, n, n)`` and ``D`` in the layout ``(n, m, K)``
+    (each entry a contiguous run of the ``K`` rows; :func:`rk4_flow`'s),
+    returned in that layout.
+
+    ``n^2`` operations over whole rows of entries. Beyond
+    :data:`_ROWWISE_MAX_STATES` they cost more than numpy's batched product
+    (measured at 32,768 rows: 6 states 11 against 12 ms, 8 states 36
+    against 15 ms), which is used there.
+    """
+    n = J.shape[1]
+    if n > _ROWWISE_MAX_STATES:
+        return np.ascontiguousarray(np.moveaxis(J @ np.moveaxis(D, 2, 0), 0, 2))
+    out = np.empty_like(D)
+    for i in range(n):
+        np.multiply(J[:, i, 0], D[0], out=out[i])
+        for j in range(1, n):
+            out[i] += J[:, i, j] * D[j]
+    return out
+
 
 #: the most multiply-adds ``n * r * m`` per row :func:`_small_matmul` does
 #: element by element before numpy's batched matmul is faster (measured at
@@ -631,11 +641,7 @@ def _difference_jacobian(rhs, guess, own=None):
     10^6 samples), and a state's typical size is the record's, not a
     block's.
     """
-    seen = np.isfinite(guess)
-    count = seen.sum(axis=0)
-    with np.errstate(all="ignore"):
-        rms = np.sqrt(np.sum(np.where(seen, guess, 0.0) ** 2, axis=0) / count)
-    scale = np.where((count > 0) & np.isfinite(rms) & (rms > 0), rms, 1.0)
+    scale = column_scale(guess)
     if own is not None:
         return lambda X, s, u: own(X, s, u, scale=scale)
     return lambda X, s, u: rowwise_jacobian(lambda z: rhs(z, s, u), X, scale=scale)

@@ -9,7 +9,17 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rowwise_jacobian"]
+__all__ = ["column_scale", "rowwise_jacobian"]
+
+
+def column_scale(x) -> np.ndarray:
+    """Each column's RMS over its finite rows (1 where that is 0 or there
+    are none): the typical size of each variable, the floor of
+    :func:`rowwise_jacobian`'s steps."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    with np.errstate(all="ignore"):
+        scale = np.sqrt(np.nanmean(np.where(np.isfinite(x), x, np.nan) ** 2, axis=0))
+    return np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
 
 
 def rowwise_jacobian(func, x, rel_step: float | None = None, scale=None) -> np.ndarray:
@@ -30,11 +40,7 @@ def rowwise_jacobian(func, x, rel_step: float | None = None, scale=None) -> np.n
     x = np.atleast_2d(np.asarray(x, dtype=float))
     rel_step = np.cbrt(np.finfo(float).eps) if rel_step is None else rel_step
     if scale is None:
-        with np.errstate(all="ignore"):
-            scale = np.sqrt(
-                np.nanmean(np.where(np.isfinite(x), x, np.nan) ** 2, axis=0)
-            )
-        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+        scale = column_scale(x)
     h = rel_step * np.maximum(np.abs(x), scale)
     out = None
     for j in range(x.shape[1]):
