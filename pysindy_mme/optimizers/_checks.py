@@ -50,6 +50,7 @@ PARAMETER_CONSTRAINTS = {
     "alpha": [_LEVEL],
     "autocorrelation": [Options("newey-west"), None],
     "time_ordered": [Boolean(), Options("auto")],
+    "errors_in_variables": [Options("auto", False)],
     "max_iter": [Integer(1)],
     "drop_insignificant_constant": [Boolean()],
     "fit_intercept": [Boolean()],
@@ -129,6 +130,7 @@ def _check_params(opt) -> dict:
     params["alpha"] = float(opt.alpha)
     params["float_ratio"] = float(opt.float_ratio)
     params["tolerance"] = float(opt.tolerance)
+    params["errors_in_variables"] = opt.errors_in_variables
     _check_no_ignored(opt, params)
     return params
 

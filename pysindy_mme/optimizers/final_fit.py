@@ -16,7 +16,6 @@ import numpy as np
 
 from ._numeric import one_blas_thread
 from .anova import f_pvalue, fit_anova, lstsq_refined
-from .gram import GramState
 from .incremental_qr import IncrementalQR
 from .partial import settle_constant
 from .robust import robust_table_statistics
@@ -92,7 +91,7 @@ def _final_fit(
         top = [int(i) for i in order]
     k = support.size
     cols = np.concatenate([support, np.asarray(top, dtype=int)])
-    if isinstance(state, GramState):
+    if hasattr(state, "pseudo_rows"):  # a state from moments
         xs, y, w = state.pseudo_rows(cols)
     else:
         xs = x[:, cols] * screen.scale[cols]
@@ -177,7 +176,7 @@ def _with_robust_statistics(table, state, cols, xs, y, w, rule):
     """
     k = len(table.features)
     assessed = np.isfinite(table.out_partial_f)
-    if isinstance(state, GramState):
+    if hasattr(state, "table_statistics"):
         stats = state.table_statistics(cols[:k], cols[k:][assessed], rule.lags)
     else:
         sw = np.sqrt(w)

@@ -34,13 +34,21 @@ __all__ = ["GramState", "first_step_vectors", "selection_state"]
 
 
 def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scale):
-    """The selection state of one target: from ``moments`` if there are any.
+    """The selection state of one target: from ``moments`` if there are any
+    (the library's, or its errors-in-variables corrected moments).
 
     ``yw``: the weighted target in its power-of-two units (``y_scale``).
     ``screen.products``, if computed, holds row ``target`` of ``X^T (sw e)``
     for the first step (see :func:`~.incremental_qr.initial_residual`).
     """
-    if moments is not None and moments.usable[target]:
+    make = getattr(moments, "make_state", None)
+    if make is not None:
+        # corrected moments (errors in variables); a target whose corrected
+        # factor is not positive definite is selected on the rows as it is
+        state = make(yw, screen, n_eff, tolerance, 1.0 / y_scale)
+        if state is not None:
+            return state
+    elif moments is not None and moments.usable[target]:
         return GramState(moments, target, screen, n_eff, tolerance, 1.0 / y_scale)
     xt_e = None if screen.products is None else screen.products[target]
     return IncrementalQR(

@@ -63,6 +63,7 @@ __all__ = [
     "engage_phase_two",
     "joint_test",
     "select",
+    "select_target",
 ]
 
 # floating="auto" engages Phase II when the Phase I residual's lag-1
@@ -477,3 +478,62 @@ def select(
             break
     out.cycle = guard.cycle
     return out
+
+
+def select_target(
+    make_state,
+    rule,
+    coef,
+    target: int,
+    *,
+    floating,
+    float_ratio,
+    max_iter,
+    name,
+    time_ordered,
+):
+    """Phases I and II of one target: ``(state, Selection, history rows, rule)``.
+
+    ``make_state()``: a fresh selection state; ``coef``: the coefficients of
+    the targets so far (each step's history row is a copy with this
+    target's row); ``time_ordered``: whether the rows are in time order.
+
+    Under the default rule with ``floating="auto"``, a Phase I residual
+    with lag-1 autocorrelation above ``AUTO_LAG1`` means the regime the
+    paper's rule was designed for (a smooth model-error estimate), where
+    Newey-West's few lags cannot capture the correlation: the selection is
+    then run again with the paper's rule (``F* = 10``, Phase II on).
+    """
+    from .rules import PAPER_F, ClassicRule
+
+    history = []
+
+    def record(state):
+        current = coef.copy()
+        current[target] = state.coefficient_row()
+        history.append(current)
+
+    def run(state, rule, floating):
+        return select(
+            state, rule, floating, float_ratio, max_iter, name, on_step=record
+        )
+
+    state = make_state()
+    if floating == "auto" and not time_ordered and not isinstance(rule, ClassicRule):
+        # Rows not in time order: the lag-1 autocorrelation "auto" reads
+        # means nothing, and the F-ratios' scale is not calibrated.
+        floating = True
+    if not (floating == "auto" and rule.robust):
+        return state, run(state, rule, floating), history, rule
+    result = run(state, rule, False)
+    if not engage_phase_two(state, "auto"):
+        return state, result, history, rule
+    lag1 = result.phase_one_lag1
+    history.clear()
+    state = make_state()
+    # the paper's Phase I rule, for a strongly autocorrelated residual
+    rule = ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
+    result = run(state, rule, True)
+    result.phase_one_lag1 = lag1
+    result.phase_two = True
+    return state, result, history, rule

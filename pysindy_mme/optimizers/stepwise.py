@@ -37,13 +37,14 @@ from ._interface import (
 )
 from ._numeric import scaled_target
 from .design import check_fit_inputs
+from .errors_in_variables import corrected_or_as_given
 from .final_fit import final_fit
 from .gram import selection_state
 from .partial import target_groups
 from .preparation import prepare_library
-from .rules import PAPER_F, PAPER_RATIO, ClassicRule
+from .rules import PAPER_F, PAPER_RATIO
 from .screening import Screen
-from .selection import engage_phase_two, select
+from .selection import select_target
 from .summary import build_summary
 
 __all__ = ["FloatingFStepwise"]
@@ -134,6 +135,19 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         library's grow with its number of windows), which Phase II's
         relative threshold does not depend on. ``floating=False`` for truly
         independent rows; ``time_ordered=True`` keeps the robust test.
+    errors_in_variables : {"auto", False}, default "auto"
+        Correct the statistics for noise in the library's inputs
+        (:mod:`pysindy_mme.optimizers.errors_in_variables`): a library of
+        noisy measured states is biased (``E[y^2] = x^2 + s^2``), so at a few
+        per cent of noise false terms fit that bias better than the true
+        model. ``"auto"``: where the columns are monomials of some of them
+        (pysindy's ``PolynomialLibrary``, found from the values), the rows
+        in time order with unit weights, and each base column's noise
+        variance found by its spectral floor, the selection (beside the one
+        on the library as given) and the coefficients use the corrected
+        moments; ``errors_in_variables_`` says whether and why not. False:
+        the library as given (for states that are estimates, not
+        measurements, such as MME's smoothed ones).
     max_iter : int, default 1000
         Maximum number of additions plus removals per target. Reaching it
         raises a ``ConvergenceWarning`` and sets ``converged_`` to False.
@@ -193,6 +207,11 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         unless rows that are all NaN were dropped).
     history_ : list of ndarray
         ``coef_`` after each step (pysindy's meaning), starting from zeros.
+    errors_in_variables_ : dict
+        Whether the errors-in-variables correction applied (``applied``),
+        why not (``reason``), the base columns (``base_columns``) and their
+        estimated noise variances (``noise_variance``); with ``partial_out``
+        a list of these, one per target.
     anova_ : list of :class:`~pysindy_mme.optimizers.AnovaTable`
         Final ANOVA table of each target (with intercept). Under the default
         rule it also holds the robust partial F-ratios, the Bonferroni-
@@ -318,6 +337,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         alpha=DEFAULT_ALPHA,
         autocorrelation="newey-west",
         time_ordered="auto",
+        errors_in_variables="auto",
         max_iter=1000,
         drop_insignificant_constant=True,
         fit_intercept=False,
@@ -340,6 +360,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self.alpha = alpha
         self.autocorrelation = autocorrelation
         self.time_ordered = time_ordered
+        self.errors_in_variables = errors_in_variables
         self.max_iter = max_iter
         self.drop_insignificant_constant = drop_insignificant_constant
         self.fit_intercept = fit_intercept
@@ -354,11 +375,18 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     def paper(cls, **kwargs):
         """The paper's modified stepwise regression (Kolodziej & Mook).
 
-        ``FloatingFStepwise(f_enter=10, floating=True, float_ratio=10)``:
-        classic partial F-ratios against ``F* = 10``, then Phase II always.
+        ``FloatingFStepwise(f_enter=10, floating=True, float_ratio=10,
+        errors_in_variables=False)``: classic partial F-ratios against
+        ``F* = 10``, then Phase II always, on the library as given (the
+        paper regresses MME's model-error estimate on its smoothed states).
         Other parameters (``max_report``, ...) may be given as keywords.
         """
-        params = dict(f_enter=PAPER_F, floating=True, float_ratio=PAPER_RATIO)
+        params = dict(
+            f_enter=PAPER_F,
+            floating=True,
+            float_ratio=PAPER_RATIO,
+            errors_in_variables=False,
+        )
         params.update(kwargs)
         return cls(**params)
 
@@ -438,14 +466,19 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         self.joint_tests_ = [None] * n_targets
         self.n_partialled_ = np.zeros(n_targets, dtype=int)
         self.excluded_ = {}
+        corrections = []
+        self._routes = []
         lost = []
         for g, (xg, yg, targets, rank) in enumerate(target_groups(x, y, w, nuisance)):
             self.n_partialled_[targets] = rank
             # the rows' time order is read on the first library only
             order = self.time_ordered if g == 0 else self.rows_in_time_order_
-            screen, rule, moments, self.rows_in_time_order_ = prepare_library(
-                xg, yg, w, params, self.autocorrelation, order
+            screen, rule, moments, self.rows_in_time_order_, correction = (
+                prepare_library(
+                    xg, yg, w, params, self.autocorrelation, order, rank == 0
+                )
             )
+            corrections.append(correction.as_dict())
             self.excluded_.update(screen.excluded)
             self.constant_feature_ = screen.carrier
             for local, t in enumerate(targets):
@@ -456,6 +489,11 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
                 self.history_.append(coef.copy())
                 if significant_lost:
                     lost.append(self._target_name(t))
+        if len(corrections) == 1:
+            corrections[0]["routes"] = tuple(self._routes)
+        self.errors_in_variables_ = (
+            corrections[0] if len(corrections) == 1 else corrections
+        )
         if self.excluded_:
             warn_excluded(self.excluded_, self._name)
         if lost:
@@ -474,60 +512,18 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         return f"{names[t]}'" if names is not None else f"target {t}"
 
     def _select(self, make_state, rule, coef, target: int):
-        """Phases I and II of one target: (state, Selection, history rows, rule).
-
-        Under the default rule with ``floating="auto"``, a Phase I residual
-        with lag-1 autocorrelation above ``AUTO_LAG1`` means the regime the
-        paper's rule was designed for (a smooth model-error estimate), where
-        Newey-West's few lags cannot capture the correlation: the selection is
-        then run again with the paper's rule (``F* = 10``, Phase II on).
-        """
-        history = []
-
-        def record(state):
-            current = coef.copy()
-            current[target] = state.coefficient_row()
-            history.append(current)
-
-        def run(state, rule, floating):
-            return select(
-                state,
-                rule,
-                floating,
-                float(self.float_ratio),
-                self.max_iter,
-                self._name,
-                on_step=record,
-            )
-
-        state = make_state()
-        floating = self.floating
-        if (
-            floating == "auto"
-            and not self.rows_in_time_order_
-            and not (isinstance(rule, ClassicRule))
-        ):
-            # Rows not in time order: the lag-1 autocorrelation "auto" reads
-            # means nothing, and the F-ratios' scale is not calibrated.
-            floating = True
-        if not (floating == "auto" and rule.robust):
-            return state, run(state, rule, floating), history, rule
-        result = run(state, rule, False)
-        if not engage_phase_two(state, "auto"):
-            return state, result, history, rule
-        lag1 = result.phase_one_lag1
-        history.clear()
-        state = make_state()
-        rule = self._smooth_rule(rule)
-        result = run(state, rule, True)
-        result.phase_one_lag1 = lag1
-        result.phase_two = True
-        return state, result, history, rule
-
-    @staticmethod
-    def _smooth_rule(rule):
-        """The paper's Phase I rule, for a strongly autocorrelated residual."""
-        return ClassicRule(PAPER_F, PAPER_F, None, None, rule.n_eff)
+        """:func:`~.selection.select_target` with this estimator's settings."""
+        return select_target(
+            make_state,
+            rule,
+            coef,
+            target,
+            floating=self.floating,
+            float_ratio=float(self.float_ratio),
+            max_iter=self.max_iter,
+            name=self._name,
+            time_ordered=self.rows_in_time_order_,
+        )
 
     def _fit_target(
         self, x, y, w, screen: Screen, rule, target, coef, moments, local, joint=None
@@ -538,14 +534,20 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         sw = np.sqrt(w)
         y_scale, yt = scaled_target(y)  # in units of its largest magnitude
 
-        def make_state():
+        def make_state(moments=moments):
             return selection_state(
                 moments, local, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
             )
 
-        state, result, steps_history, rule = self._select(
-            make_state, rule, coef, target
+        selected = self._select(make_state, rule, coef, target)
+        (state, result, steps_history, rule), route = corrected_or_as_given(
+            selected,
+            moments,
+            lambda: self._select(lambda: make_state(None), rule, coef, target),
+            make_state,
         )
+        if route is not None:
+            self._routes.append(route)
         self.history_ += steps_history
         if result.cycle is not None:
             self.cycle_detected_ = True

@@ -40,7 +40,7 @@ OVER_TWELVE = {
     # scikit-learn estimators keep every setting a flat __init__ parameter
     # (get_params / set_params / clone need them so)
     "MME": 17,
-    "FloatingFStepwise": 18,
+    "FloatingFStepwise": 19,
     # results records (dataclasses) the study builds, not users
     "Discovery": 19,
     "NoiseDiagnostics": 14,
