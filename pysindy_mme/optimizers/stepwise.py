@@ -136,18 +136,13 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         relative threshold does not depend on. ``floating=False`` for truly
         independent rows; ``time_ordered=True`` keeps the robust test.
     errors_in_variables : {"auto", False}, default "auto"
-        Correct the statistics for noise in the library's inputs
-        (:mod:`pysindy_mme.optimizers.errors_in_variables`): a library of
-        noisy measured states is biased (``E[y^2] = x^2 + s^2``), so at a few
-        per cent of noise false terms fit that bias better than the true
-        model. ``"auto"``: where the columns are monomials of some of them
-        (pysindy's ``PolynomialLibrary``, found from the values), the rows
-        in time order with unit weights, and each base column's noise
-        variance found by its spectral floor, the selection (beside the one
-        on the library as given) and the coefficients use the corrected
-        moments; ``errors_in_variables_`` says whether and why not. False:
-        the library as given (for states that are estimates, not
-        measurements, such as MME's smoothed ones).
+        Correct the statistics for noise in the library's inputs, which at a
+        few per cent lets false terms fit better than the true model
+        (:mod:`pysindy_mme.optimizers.errors_in_variables`). ``"auto"``: for a
+        polynomial library of states measured with white noise, rows in
+        time order (found from the values, ``errors_in_variables_`` says
+        whether and why not). False: the library as given (states that are
+        estimates, not measurements, such as MME's).
     max_iter : int, default 1000
         Maximum number of additions plus removals per target. Reaching it
         raises a ``ConvergenceWarning`` and sets ``converged_`` to False.
@@ -208,10 +203,9 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     history_ : list of ndarray
         ``coef_`` after each step (pysindy's meaning), starting from zeros.
     errors_in_variables_ : dict
-        Whether the errors-in-variables correction applied (``applied``),
-        why not (``reason``), the base columns (``base_columns``) and their
-        estimated noise variances (``noise_variance``); with ``partial_out``
-        a list of these, one per target.
+        ``applied``, ``reason`` (why not), ``base_columns``,
+        ``noise_variance`` and each target's ``routes`` (a list of these
+        with ``partial_out``).
     anova_ : list of :class:`~pysindy_mme.optimizers.AnovaTable`
         Final ANOVA table of each target (with intercept). Under the default
         rule it also holds the robust partial F-ratios, the Bonferroni-
@@ -539,15 +533,15 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
                 moments, local, x, sw, yt * sw, screen, n_eff, self.tolerance, y_scale
             )
 
-        selected = self._select(make_state, rule, coef, target)
         (state, result, steps_history, rule), route = corrected_or_as_given(
-            selected,
+            self._select(make_state, rule, coef, target),
             moments,
             lambda: self._select(lambda: make_state(None), rule, coef, target),
             make_state,
+            lambda state: _with_row(coef, target, state),
+            self._name,
         )
-        if route is not None:
-            self._routes.append(route)
+        self._routes += [route] if route else []
         self.history_ += steps_history
         if result.cycle is not None:
             self.cycle_detected_ = True
@@ -590,6 +584,13 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """
         check_is_fitted(self, "coef_")
         return build_summary(self, feature_names, target_names, target)
+
+
+def _with_row(coef, target: int, state):
+    """A copy of ``coef`` with ``state``'s coefficients as row ``target``."""
+    row = coef.copy()
+    row[target] = state.coefficient_row()
+    return row
 
 
 def _positive_rows(x, y, w, nuisance):
