@@ -10,6 +10,8 @@ FloatingFStepwise())``). The modules, one job each:
 * :mod:`.incremental_qr`: the QR state from which partial F-ratios follow;
 * :mod:`.moments`, :mod:`.gram`: the same state from two passes' moments
   (tall libraries: 20,000 rows or more, up to 16 columns);
+* :mod:`.errors_in_variables`, :mod:`.corrected_state`: the same state from
+  the corrected moments of a polynomial library of noisy measured states;
 * :mod:`.selection`: the Phase I / Phase II machine over that state;
 * :mod:`.final_fit`: coefficients and ANOVA table of the chosen model;
 * :mod:`.rules`: which statistic meets which threshold (default and classic);

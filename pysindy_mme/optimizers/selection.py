@@ -119,7 +119,10 @@ class Step:
     joint : bool
         Added by the joint restart: ``partial_f`` and ``threshold`` are then
         the joint F-ratio of all the functions added together and its
-        critical value at ``alpha``.
+        critical value at ``alpha``. (A step with ``threshold`` 1 exchanged
+        the model for a smaller one with a smaller corrected residual sum of
+        squares, ``partial_f`` their ratio:
+        :func:`~.errors_in_variables.corrected_or_as_given`.)
     """
 
     iteration: int
