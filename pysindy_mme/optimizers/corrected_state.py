@@ -12,7 +12,7 @@ import numpy as np
 import scipy.linalg
 
 from ._numeric import safe_ratio
-from .least_squares_state import EXACT_FIT_RTOL, LeastSquaresState
+from .least_squares_state import EXACT_FIT_RTOL, RefactoredState
 from .robust import (
     ROBUST_CANDIDATES,
     lag1_autocorrelation,
@@ -44,7 +44,7 @@ def _cholesky(gram) -> np.ndarray | None:
     return lower.T * d
 
 
-class CorrectedState(LeastSquaresState):
+class CorrectedState(RefactoredState):
     """Selection state of one target on the corrected moments of a noisy library.
 
     The same quantities as :class:`~.gram.GramState` (``T``, ``z``, and
@@ -65,16 +65,7 @@ class CorrectedState(LeastSquaresState):
         self.yw = yw
         self.b = cm.rows.T @ yw  # cross-products with the target (kept)
         self.yy = float(yw @ yw)
-        self.scale = screen.scale
-        self.y_unit = y_unit
-        self.carrier = screen.carrier
-        self.carrier_value = screen.carrier_value
-        self.eligible = screen.eligible
-        self.cn2 = screen.cn2
-        self.n_eff = n_eff
-        self.tol2 = tolerance**2
-        self.support = []
-        self.in_model = np.zeros(screen.eligible.size, dtype=bool)
+        self._start(screen, n_eff, tolerance, y_unit)
         self.floor2 = (EXACT_FIT_RTOL * np.sqrt(self.yy)) ** 2
         self._update()
         self.sst = self.sse()
@@ -104,16 +95,6 @@ class CorrectedState(LeastSquaresState):
         # not positive: within the noise of the model's span (cannot enter)
         self.nr2 = np.maximum(full_nr2, 0.0)
         self.g = np.where(full_nr2 > 0, full_g, 0.0)
-
-    def add(self, j: int) -> None:
-        self.support.append(int(j))
-        self.in_model[j] = True
-        self._update()
-
-    def remove(self, j: int) -> None:
-        self.support.remove(int(j))
-        self.in_model[j] = False
-        self._update()
 
     def sse(self) -> float:
         return max(self.yy - float(self.z @ self.z), 0.0)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ._numeric import safe_ratio, scaled_target
 from .incremental_qr import IncrementalQR, initial_residual
-from .least_squares_state import EXACT_FIT_RTOL, LeastSquaresState
+from .least_squares_state import EXACT_FIT_RTOL, RefactoredState
 from .moments import LibraryMoments, pair_vectors
 from .robust import ROBUST_CANDIDATES, classic_joint_f, small_sample_factor
 from .screening import Screen
@@ -65,7 +65,7 @@ def first_step_vectors(sw, y) -> np.ndarray:
     ).reshape(-1, sw.size)
 
 
-class GramState(LeastSquaresState):
+class GramState(RefactoredState):
     """Least-squares state of one target during selection, from moments.
 
     Parameters
@@ -94,16 +94,7 @@ class GramState(LeastSquaresState):
         self.moments = moments
         self.y_col = moments.target_column(target)
         self.Rt = moments.target_factor(target)
-        self.scale = screen.scale
-        self.y_unit = y_unit
-        self.carrier = screen.carrier
-        self.carrier_value = screen.carrier_value
-        self.eligible = screen.eligible
-        self.cn2 = screen.cn2
-        self.n_eff = n_eff
-        self.tol2 = tolerance**2
-        self.support = []
-        self.in_model = np.zeros(screen.eligible.size, dtype=bool)
+        self._start(screen, n_eff, tolerance, y_unit)
         ry = self.Rt[:, -1]
         self.floor2 = (EXACT_FIT_RTOL * float(np.linalg.norm(ry))) ** 2
         self._update()
@@ -136,16 +127,6 @@ class GramState(LeastSquaresState):
         nr2[self.in_model] = 0.0
         g[self.in_model] = 0.0
         self.nr2, self.g = nr2, g
-
-    def add(self, j: int) -> None:
-        self.support.append(int(j))
-        self.in_model[j] = True
-        self._update()
-
-    def remove(self, j: int) -> None:
-        self.support.remove(int(j))
-        self.in_model[j] = False
-        self._update()
 
     def _embed(self, local: np.ndarray) -> np.ndarray:
         """``U``-coordinates of vectors in the target's coordinates (``Rt``'s)."""

@@ -73,20 +73,11 @@ class IncrementalQR(LeastSquaresState):
         self, x, sw, yw, screen: Screen, n_eff, tolerance, y_unit=1.0, xt_e=None
     ):
         self.x = x
-        self.scale = screen.scale
-        self.y_unit = y_unit
         self.sw = sw
         self.yw = yw
-        self.carrier = screen.carrier
-        self.carrier_value = screen.carrier_value
-        self.eligible = screen.eligible
-        self.cn2 = screen.cn2
+        self._start(screen, n_eff, tolerance, y_unit)  # support: Q's columns 1..k
         self.un2 = screen.un2
-        self.n_eff = n_eff
-        self.tol2 = tolerance**2
         n, p = x.shape
-        self.support = []  # library columns, in the order of Q's columns 1..k
-        self.in_model = np.zeros(p, dtype=bool)
         cap = 8
         self.Q = np.zeros((n, cap), order="F")
         self.C = np.zeros((cap, p))

@@ -18,7 +18,7 @@ from scipy.linalg.lapack import dtrtri
 
 from ._numeric import safe_ratio
 
-__all__ = ["EXACT_FIT_RTOL", "LeastSquaresState"]
+__all__ = ["EXACT_FIT_RTOL", "LeastSquaresState", "RefactoredState"]
 
 # A target reproduced to this relative accuracy is fitted to rounding level:
 # partial F-ratios computed from a rounding-noise residual are meaningless, so
@@ -34,6 +34,20 @@ class LeastSquaresState:
     ``scale``, ``y_unit``, ``carrier``, ``carrier_value`` and defines
     :meth:`sse`.
     """
+
+    def _start(self, screen, n_eff, tolerance, y_unit) -> None:
+        """The attributes every state takes from the library's screen, and
+        the empty model."""
+        self.scale = screen.scale
+        self.y_unit = y_unit
+        self.carrier = screen.carrier
+        self.carrier_value = screen.carrier_value
+        self.eligible = screen.eligible
+        self.cn2 = screen.cn2
+        self.n_eff = n_eff
+        self.tol2 = tolerance**2
+        self.support = []  # library columns, in the order they entered
+        self.in_model = np.zeros(screen.eligible.size, dtype=bool)
 
     @property
     def k(self) -> int:
@@ -105,3 +119,22 @@ class LeastSquaresState:
         red = np.minimum(red, sse)
         f = safe_ratio(red * dof_new, np.maximum(sse - red, 0.0))
         return np.where(elig, f, -np.inf)
+
+
+class RefactoredState(LeastSquaresState):
+    """A state that refactors its model after each step (``_update``), for
+    the states read from moments (:class:`~.gram.GramState`,
+    :class:`~.corrected_state.CorrectedState`): ``O(m^3)`` per step, no rows."""
+
+    def _update(self) -> None:  # pragma: no cover - defined by every subclass
+        raise NotImplementedError
+
+    def add(self, j: int) -> None:
+        self.support.append(int(j))
+        self.in_model[j] = True
+        self._update()
+
+    def remove(self, j: int) -> None:
+        self.support.remove(int(j))
+        self.in_model[j] = False
+        self._update()
