@@ -115,7 +115,8 @@ class CorrectedState(RefactoredState):
 
         The smallest number of terms at which some model of the eligible
         columns fits better than the current one, and the best model of that
-        size. None also when that would mean more than ``budget`` models.
+        size (the first in ``itertools.combinations`` order among equals).
+        None also when that would mean more than ``budget`` models.
         """
         from itertools import combinations
         from math import comb
@@ -126,14 +127,30 @@ class CorrectedState(RefactoredState):
             return None
         current = self.sse()
         for m in range(1, k):
-            best, best_sse = None, current
-            for subset in combinations(columns, m):
-                value = self.sse_of(subset)
-                if value < best_sse:
-                    best, best_sse = subset, value
-            if best is not None:
-                return list(best)
+            subsets = np.array(list(combinations(columns, m)), dtype=int)
+            sse = self._sse_of_many(subsets)
+            best = int(np.argmin(sse))
+            if sse[best] < current:
+                return [int(j) for j in subsets[best]]
         return None
+
+    def _sse_of_many(self, subsets) -> np.ndarray:
+        """:meth:`sse_of` of each row of ``subsets`` (one batched factorisation)."""
+        local = np.column_stack(
+            [np.zeros(len(subsets), dtype=int), self.cm.position[subsets]]
+        )
+        A = self.cm.gram[local[:, :, None], local[:, None, :]]
+        b = self.b[local]
+        out = np.full(len(subsets), np.inf)
+        # positive definite ones only: the corrected matrix need not be
+        d = np.sqrt(np.einsum("cii->ci", A))
+        scaled = A / (d[:, :, None] * d[:, None, :])
+        ok = np.linalg.eigvalsh(scaled)[:, 0] > 1e-14
+        if ok.any():
+            L = np.linalg.cholesky(A[ok])
+            z = np.linalg.solve(L, b[ok][..., None])[..., 0]
+            out[ok] = self.yy - np.einsum("ci,ci->c", z, z)
+        return out
 
     # ----------------------------------------------- the rows' estimating eqs
     def _lags(self) -> int:
@@ -145,12 +162,11 @@ class CorrectedState(RefactoredState):
         small-sample factor) and the residual series. Raises ``LinAlgError``
         where the corrected Gram matrix on ``cols`` is singular."""
         cm = self.cm
-        G = cm.outer(cols)
         A = cm.gram[np.ix_(cols, cols)]
         theta = cm.rows[:, cols]
         beta = np.linalg.solve(A, self.b[cols])
         e = self.yw - theta @ beta
-        psi = theta * self.yw[:, None] - np.einsum("tij,j->ti", G, beta)
+        psi = theta * self.yw[:, None] - cm.outer_times(cols, beta)
         ainv = np.linalg.inv(A)
         omega = long_run_covariance(psi, self._lags())
         return beta, ainv @ omega @ ainv, e

@@ -453,11 +453,13 @@ class CorrectedMoments:
             self.unit[a] * self.unit[b]
         )
 
-    def outer(self, cols) -> np.ndarray:
-        """Per-row corrected outer products of columns ``cols``: (n, c, c)."""
-        c = len(cols)
-        out = np.empty((self.n_rows, c, c))
-        for i in range(c):
-            for j in range(i, c):
-                out[:, i, j] = out[:, j, i] = self.entry(cols[i], cols[j])
-        return out
+    def outer_times(self, cols, beta) -> np.ndarray:
+        """Per row, the corrected outer product of columns ``cols`` of ``[1,
+        X]`` times ``beta``: (n, c), without forming the (n, c, c) products."""
+        out = np.zeros((len(cols), self.n_rows))
+        weights = self.unit[cols] * beta
+        for i, a in enumerate(cols):
+            for j, b in enumerate(cols):
+                out[i] += self.monomial(self.powers[a] + self.powers[b]) * weights[j]
+            out[i] *= self.unit[a]
+        return out.T
