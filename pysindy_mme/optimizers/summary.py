@@ -147,9 +147,34 @@ def _labels(opt, feature_names, target_names, target):
     return feature_names, labels, targets
 
 
+def _errors_in_variables_line(opt, name) -> str:
+    """Whether the statistics were corrected for a noisy library, and why not
+    (only where it could have been: a polynomial library, or rows out of
+    time order; nothing for a small or non-polynomial library, or when off)."""
+    info = getattr(opt, "errors_in_variables_", None)
+    if not isinstance(info, dict):
+        return ""
+    if not info["applied"]:
+        if info["base_columns"] or info["reason"] == "rows not in time order":
+            return f"Errors in variables: not corrected ({info['reason']})."
+        return ""
+    noise = ", ".join(
+        f"{name(j)} {v:.3g}"
+        for j, v in zip(info["base_columns"], info["noise_variance"], strict=True)
+    )
+    return (
+        "Errors in variables: statistics corrected for the noise of the library's "
+        f"base columns (variances: {noise})."
+    )
+
+
 def _notes(opt, t) -> list:
     """Plain-text notes under a target's ANOVA table."""
     notes = []
+    info = getattr(opt, "errors_in_variables_", None)
+    routes = info.get("routes", ()) if isinstance(info, dict) else ()
+    if t < len(routes):
+        notes.append(f"  Note: errors in variables: the model {_ROUTES(routes[t])}.")
     table = opt.anova_[t]
     no_column = getattr(opt, "constant_feature_", 0) is None
     if opt.intercept_dropped_[t] and no_column and not opt.fit_intercept:
@@ -213,6 +238,23 @@ def _warnings(opt) -> list:
     return out
 
 
+def _ROUTES(route: str) -> str:  # noqa: N802 - reads as a phrase
+    """A target's errors-in-variables route, in words."""
+    words = {
+        "both": "is the same on the corrected and the given library",
+        "corrected": "is the corrected selection's",
+        "as given": (
+            "is the selection's on the library as given (coefficients corrected)"
+        ),
+        "as given (the target shares the library's noise)": (
+            "is fitted as given (the target shares the library's noise)"
+        ),
+    }
+    base, _, then = route.partition(", then ")
+    text = words.get(base, base)
+    return text + (f", then {then}" if then else "")
+
+
 def build_summary(opt, feature_names=None, target_names=None, target=None):
     """The :class:`StepwiseSummary` of a fitted optimizer (see its ``summary``)."""
     feature_names, labels, targets = _labels(opt, feature_names, target_names, target)
@@ -223,6 +265,10 @@ def build_summary(opt, feature_names=None, target_names=None, target=None):
     rule = rule_description(opt)
     text = [rule]
     page = [f"<p><b>{html.escape(rule)}</b></p>"]
+    correction = _errors_in_variables_line(opt, name)
+    if correction:
+        text.append(correction)
+        page.append(f"<p>{html.escape(correction)}</p>")
     if opt.excluded_:
         text.append("Library columns set aside (never selected):")
         text += [f"  {name(j)}: {why}" for j, why in opt.excluded_.items()]

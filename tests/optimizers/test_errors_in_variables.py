@@ -216,7 +216,11 @@ def test_not_applied_to_rows_out_of_time_order():
     theta = np.asarray(ps.PolynomialLibrary(2).fit(y).transform(y))
     dx = ps.SmoothedFiniteDifference()._differentiate(y, t)
     order = np.random.default_rng(0).permutation(len(t))
-    info = _fit(theta[order], dx[order]).errors_in_variables_
+    opt = _fit(theta[order], dx[order])
+    assert "Errors in variables: not corrected (rows not in time order)" in str(
+        opt.summary()
+    )
+    info = opt.errors_in_variables_
     assert info == dict(
         applied=False,
         reason="rows not in time order",
@@ -324,6 +328,9 @@ def test_rikitakes_restart_that_ends_larger_is_exchanged():
         "then a smaller model that fits better"
     )
     np.testing.assert_array_equal(opt.coef_ != 0, coef)
+    text = str(opt.summary(target=1))
+    assert "Errors in variables: statistics corrected" in text
+    assert "then a smaller model that fits better" in text
     last = opt.steps_[1][-1]
     assert last.threshold == 1.0 and last.partial_f > 1.0
     assert opt.n_iter_[1] == len(opt.steps_[1])
