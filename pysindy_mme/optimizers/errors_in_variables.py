@@ -62,7 +62,7 @@ import numpy as np
 from ..core.noise import estimate_noise_variance
 from .corrected_state import CorrectedState
 from .moments import MIN_ROWS as MOMENT_ROWS
-from .selection import JOINT_MIN_EFFECT, restart_effect
+from .selection import JOINT_MIN_EFFECT, Step, restart_effect
 
 __all__ = [
     "MAX_COLUMNS",
@@ -232,9 +232,8 @@ def corrected_or_as_given(
     library (monomials along a limit cycle) well conditioned. Without it the
     corrected selection can represent the derivative's systematic error with
     a larger model that fits better (the Brusselator at 5 % noise: seven
-    terms for three). So the selection also runs on the library as given
-    (``as_given``: what ``FloatingFStepwise._select`` returns), both models
-    are compared in the corrected metric, and the larger is kept only if it
+    terms for three). So the selection also runs on the library as given,
+    both models are compared in the corrected metric, and the larger is kept only if it
     is relevantly better: each extra term reduces the corrected residual sum
     of squares by ``JOINT_MIN_EFFECT`` times the larger model's (the joint
     restart's rule, :func:`~.selection.restart_effect`); between models of
@@ -276,8 +275,6 @@ def corrected_or_as_given(
 
 def _exchange_steps(old, support, iteration: int, name, ratio) -> list:
     """Steps from the model ``old`` to ``support`` (removals, then additions)."""
-    from .selection import Step
-
     old = list(old)
     moves = [("remove", j) for j in old if j not in support]
     moves += [("add", j) for j in support if j not in old]
@@ -291,6 +288,7 @@ def _exchange_steps(old, support, iteration: int, name, ratio) -> list:
 
 
 def _corrected_or_as_given(corrected, moments, select_as_given, make_corrected):
+    """:func:`corrected_or_as_given` before the smaller-model check."""
     state = corrected[0]
     if not isinstance(moments, CorrectedMoments):
         return corrected, None
@@ -375,7 +373,7 @@ class CorrectedMoments:
 
     Holds the rows' library (scaled), the per-row monomial estimates and the
     corrected Gram matrix of ``[1, eligible columns]`` (scaled units); each
-    target's factor is made when its state is (:meth:`make_state`).
+    target's selection state comes from :meth:`make_state`.
     """
 
     def __init__(self, x, x_base, variance, columns, powers, screen, rule):
