@@ -12,6 +12,7 @@ import numpy as np
 import scipy.linalg
 
 from ._numeric import safe_ratio
+from .gram import rows_of_factor
 from .least_squares_state import EXACT_FIT_RTOL, RefactoredState
 from .robust import (
     ROBUST_CANDIDATES,
@@ -197,10 +198,13 @@ class CorrectedState(RefactoredState):
 
     def robust_in_model_f(self, lags: int) -> np.ndarray:
         self._check_lags(lags)
-        cols = self._local(self.support)
-        beta, V, _ = self._fit(cols)
+        return self._robust_in_model(self._local(self.support))[0]
+
+    def _robust_in_model(self, cols):
+        """``(robust partial F of each of cols, the residual series)``."""
+        beta, V, e = self._fit(cols)
         var = np.diag(V) * small_sample_factor(self.cm.n_rows, len(cols))
-        return safe_ratio(beta**2, np.maximum(var, 0.0))
+        return safe_ratio(beta**2, np.maximum(var, 0.0)), e
 
     def robust_candidate_f(self, lags: int, classic_f: np.ndarray) -> np.ndarray:
         self._check_lags(lags)
@@ -219,14 +223,9 @@ class CorrectedState(RefactoredState):
         if lags is not None:
             self._check_lags(lags)
             return self._wald(base + local, q)
-        gram = self.cm.gram
-        every = base + local
-        try:
-            T = scipy.linalg.cholesky(gram[np.ix_(every, every)])
-        except np.linalg.LinAlgError:
+        rest = self.sse_of(list(self.support) + [int(c) for c in cols])
+        if rest == np.inf:
             return -np.inf
-        z = scipy.linalg.solve_triangular(T, self.b[every], trans="T")
-        rest = self.yy - float(z @ z)
         reduction = self.sse() - rest
         dof = self.n_eff - self.k - q - 1
         if rest <= self.floor2:
@@ -255,13 +254,7 @@ class CorrectedState(RefactoredState):
             floor = np.linalg.eigvalsh(corr[np.ix_(range(k1), range(k1))]).min()
             corr = (v_ * np.maximum(w_, floor * 1e-3)) @ v_.T
             R = np.linalg.cholesky(corr).T * d
-        a = R[:, 0]
-        t = np.full(m + 1, a[0] / np.sqrt(m + 1))
-        v = a - t
-        vv = float(v @ v)
-        rows = R if vv == 0 else R - np.outer(v, (2.0 / vv) * (v @ R))
-        w = np.full(m + 1, self.n_eff / (m + 1))
-        sw = np.sqrt(w)
+        rows, sw, w = rows_of_factor(R, self.n_eff)
         return rows[:, 1:m] / sw[:, None], rows[:, m] / sw, w
 
     def table_statistics(self, support, candidates, lags: int) -> dict:
@@ -271,15 +264,14 @@ class CorrectedState(RefactoredState):
         self._check_lags(lags)
         n = self.cm.n_rows
         cols = self._local(support)
-        beta, V, e = self._fit(cols)
-        var = np.maximum(np.diag(V) * small_sample_factor(n, len(cols)), 0.0)
+        in_model, e = self._robust_in_model(cols)
         out = np.array(
             [self._wald(cols + [int(self.cm.position[j])], 1) for j in candidates]
         )
         ee = float(e @ e)
         lrv = float(long_run_variance(e, self._lags()))
         return dict(
-            in_model=np.atleast_1d(safe_ratio(beta**2, var)),
+            in_model=np.atleast_1d(in_model),
             out=np.atleast_1d(out) if len(candidates) else np.zeros(0),
             lag1=lag1_autocorrelation(e),
             effective_n=float(n * ee / lrv) if lrv > 0 else float(n),

@@ -323,8 +323,13 @@ def _noise_is_independent(x_base) -> bool:
         return False
     c = np.corrcoef(d, rowvar=False)
     off = np.abs(c[~np.eye(c.shape[0], dtype=bool)])
-    limit = max(_MAX_NOISE_CORRELATION, 4.0 / np.sqrt(d.shape[0]))
-    return bool(np.all(off <= limit))
+    return bool(np.all(off <= _noise_correlation_limit(d.shape[0])))
+
+
+def _noise_correlation_limit(n: int) -> float:
+    """The largest correlation of two independent noises' ``n`` fourth
+    differences taken as chance (and at least :data:`_MAX_NOISE_CORRELATION`)."""
+    return max(_MAX_NOISE_CORRELATION, 4.0 / np.sqrt(max(n, 1)))
 
 
 def correction_for(x, w, screen, rule, time_ordered: bool):
@@ -396,9 +401,7 @@ class CorrectedMoments:
         ]
         self._cache = {}
         self._base_differences = [np.diff(c, n=4) for c in x_base.T]
-        self._noise_correlation_limit = max(
-            _MAX_NOISE_CORRELATION, 4.0 / np.sqrt(max(n - 4, 1))
-        )
+        self._noise_correlation_limit = _noise_correlation_limit(n - 4)
         m = self.unit.size
         gram = np.empty((m, m))
         for a in range(m):

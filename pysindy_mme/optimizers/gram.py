@@ -30,7 +30,7 @@ from .moments import LibraryMoments, pair_vectors
 from .robust import ROBUST_CANDIDATES, classic_joint_f, small_sample_factor
 from .screening import Screen
 
-__all__ = ["GramState", "first_step_vectors", "selection_state"]
+__all__ = ["GramState", "first_step_vectors", "rows_of_factor", "selection_state"]
 
 
 def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scale):
@@ -43,8 +43,8 @@ def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scal
     """
     make = getattr(moments, "make_state", None)
     if make is not None:
-        # corrected moments (errors in variables); a target whose corrected
-        # factor is not positive definite is selected on the rows as it is
+        # corrected moments (errors in variables); a target whose noise is
+        # the library's own (make_state: None) is selected on the rows as given
         state = make(yw, screen, n_eff, tolerance, 1.0 / y_scale)
         if state is not None:
             return state
@@ -54,6 +54,22 @@ def selection_state(moments, target, x, sw, yw, screen, n_eff, tolerance, y_scal
     return IncrementalQR(
         x, sw, yw, screen, n_eff, tolerance, y_unit=1.0 / y_scale, xt_e=xt_e
     )
+
+
+def rows_of_factor(R, n_eff):
+    """``(rows, sqrt(w), w)``: the rows of the triangular factor ``R`` of
+    ``[sqrt(w), X, y]`` (constant first) turned by a Householder reflection so
+    that the constant's column is constant, and equal weights summing to
+    ``n_eff``: a few rows whose weighted cross-products are ``R^T R``
+    (:meth:`GramState.pseudo_rows`)."""
+    m = R.shape[0]
+    a = R[:, 0]
+    t = np.full(m, a[0] / np.sqrt(m))
+    v = a - t
+    vv = float(v @ v)
+    rows = R if vv == 0 else R - np.outer(v, (2.0 / vv) * (v @ R))
+    w = np.full(m, n_eff / m)
+    return rows, np.sqrt(w), w
 
 
 def first_step_vectors(sw, y) -> np.ndarray:
@@ -241,15 +257,7 @@ class GramState(RefactoredState):
         reflection maps the constant's column of ``R``, ``||sqrt(w)|| e_1``,
         to a constant vector.)
         """
-        R = self.Rt
-        m = R.shape[0]
-        a = R[:, 0]
-        t = np.full(m, a[0] / np.sqrt(m))
-        v = a - t
-        vv = float(v @ v)
-        rows = R if vv == 0 else R - np.outer(v, (2.0 / vv) * (v @ R))
-        w = np.full(m, self.n_eff / m)
-        sw = np.sqrt(w)
+        rows, sw, w = rows_of_factor(self.Rt, self.n_eff)
         pos = self.moments.position[np.asarray(cols, dtype=int)]
         return rows[:, pos] / sw[:, None], rows[:, -1] / sw, w
 

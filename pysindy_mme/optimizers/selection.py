@@ -62,6 +62,7 @@ __all__ = [
     "Step",
     "engage_phase_two",
     "joint_test",
+    "history_row",
     "select",
     "select_target",
 ]
@@ -483,6 +484,14 @@ def select(
     return out
 
 
+def history_row(coef, target: int, state) -> np.ndarray:
+    """A copy of ``coef`` with ``state``'s coefficients as row ``target``
+    (pysindy's ``history_``: ``coef_`` after each step)."""
+    row = coef.copy()
+    row[target] = state.coefficient_row()
+    return row
+
+
 def select_target(
     make_state,
     rule,
@@ -512,9 +521,7 @@ def select_target(
     history = []
 
     def record(state):
-        current = coef.copy()
-        current[target] = state.coefficient_row()
-        history.append(current)
+        history.append(history_row(coef, target, state))
 
     def run(state, rule, floating):
         return select(

@@ -44,7 +44,7 @@ from .partial import target_groups
 from .preparation import prepare_library
 from .rules import PAPER_F, PAPER_RATIO
 from .screening import Screen
-from .selection import select_target
+from .selection import history_row, select_target
 from .summary import build_summary
 
 __all__ = ["FloatingFStepwise"]
@@ -538,7 +538,7 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
             moments,
             lambda: self._select(lambda: make_state(None), rule, coef, target),
             make_state,
-            lambda state: _with_row(coef, target, state),
+            lambda state: history_row(coef, target, state),
             self._name,
         )
         self._routes += [route] if route else []
@@ -584,13 +584,6 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
         """
         check_is_fitted(self, "coef_")
         return build_summary(self, feature_names, target_names, target)
-
-
-def _with_row(coef, target: int, state):
-    """A copy of ``coef`` with ``state``'s coefficients as row ``target``."""
-    row = coef.copy()
-    row[target] = state.coefficient_row()
-    return row
 
 
 def _positive_rows(x, y, w, nuisance):
