@@ -183,6 +183,12 @@ class Study:
     #: already (a stretch held out of its own record: MME's states there);
     #: None: :func:`~pysindy_mme.protocols.runs.record_guess` estimates it
     states_guess: np.ndarray | None = None
+    #: each model's own trajectory over that record, where the study has one
+    #: (its in-sample free run over the held-out stretch: a trajectory of
+    #: the same model at nearly the refitted parameters): where Newton's
+    #: method starts that model's free run (``{"assumed": x, "extended":
+    #: x}``; the run does not depend on it, only its cost does)
+    run_guesses: dict | None = None
 
     @property
     def validation_protocol(self) -> ValidationProtocol:

@@ -473,7 +473,12 @@ def _undetermined(fit, names, pinned=()) -> list:
                 f"value ({sig(se[j])})"
             )
     pairs = correlated_pairs(
-        cov, names[:k], ~determined, limit=TRADE_OFF_CORRELATION, most=None
+        cov,
+        names[:k],
+        ~determined,
+        limit=TRADE_OFF_CORRELATION,
+        most=None,
+        values=theta,
     )
     out += [
         f"{a} and {b} trade off (correlation of their estimates {r:+.4f})"

@@ -200,16 +200,33 @@ def record_guess(study, record):
     return np.asarray(estimate.smoothed_x_)
 
 
+def run_guess(study, name: str, guess):
+    """Where Newton's method starts model ``name``'s free run: the study's
+    own run of that model over the record (``run_guesses``) when it has one
+    of the record's shape, finite throughout, else ``guess`` (a state
+    estimate). Either gives the same run (:func:`free_run`)."""
+    own = (getattr(study, "run_guesses", None) or {}).get(name)
+    if own is None:
+        return guess
+    own = np.asarray(own, dtype=float)
+    if own.shape != np.shape(guess) or not np.all(np.isfinite(own)):
+        return guess
+    return own
+
+
 def window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
     """``(x0, offsets)`` of ``model_rhs`` fitted to the window ``y`` (an
     output-error fit of the initial state and, with ``study.offsets``, the
     measurement offsets; nothing else)."""
+    fit = _window_fit(study, model_rhs, features, substeps, y, t, inputs, guess)
+    return fit.x[0], (fit.offsets if study.offsets else 0.0)
 
-    base = AsBase(model_rhs)
 
+def _window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
+    """The output-error fit behind :func:`window_fit`."""
     m_off = y.shape[1] if study.offsets else 0
-    fit = OutputErrorModel(
-        base,
+    return OutputErrorModel(
+        AsBase(model_rhs),
         study.n_states,
         features,
         y,
@@ -220,11 +237,82 @@ def window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
         n_offsets=m_off,
         n_substeps=substeps,
     ).fit((), np.zeros(m_off), guess)
-    return fit.x[0], (fit.offsets if m_off else 0.0)
+
+
+#: a window whose fitted initial state has a standard error (from the noise
+#: alone) larger than this share of some state's spread over the record has
+#: not determined it at all (the paper's Van der Pol case at 40 Hz, 50
+#: samples: 3-9 % depending on the record; the same 50 samples at 4 kHz
+#: 300 %, and at 100 kHz a study started its free runs from a velocity of
+#: -88 where the record's was about -2) ...
+X0_UNDETERMINED = 1.0
+#: ... and is then doubled until that share is at most this (or a fifth of
+#: the record). Not a test that the run does not depend on its initial state:
+#: on an attracting cycle the share stops falling (the data forget the
+#: initial state's contracting part, and so does the run), which is why a
+#: window that determines the state only to 9 % is kept; the run's own
+#: sensitivity to the initial state would be the measure (not computed)
+X0_RELATIVE_SE = 0.05
+
+
+def _x0_relative_se(fit, spread) -> float:
+    """The largest standard error of ``fit``'s initial state over the
+    states' ``spread`` (inf where it is not determined)."""
+    s2 = float(fit.residual_variance * fit.inflation)
+    cov = np.asarray(fit.x0_covariance, dtype=float)
+    if np.isfinite(s2) and s2 > 0:
+        cov = cov / s2  # the noise's share only: a model's misfit is its own
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    seen = np.isfinite(spread) & (spread > 0)
+    rel = np.where(np.isfinite(np.diag(cov)), se, np.inf)[seen] / spread[seen]
+    return float(np.max(rel, initial=0.0))
+
+
+def determined_window(study, models, features, substeps, record, inputs, guess, window):
+    """``(window, {name: (x0, offsets)})``: the leading window and each
+    model's initial state and offsets fitted to it. A window that leaves
+    some model's initial state undetermined (:data:`X0_UNDETERMINED`) is
+    doubled until it determines them all to :data:`X0_RELATIVE_SE`, up to a
+    fifth of the record.
+
+    A window of a fixed number of samples is a fixed share of a period only
+    at one sampling rate: at a high rate it sees a sliver of the motion, and
+    the unmeasured states fitted to it are noise (the free runs then score
+    their initial state, not the model).
+    """
+    y_v, t_v, _ = record
+    spread = np.nanstd(np.asarray(guess, dtype=float), axis=0)
+    longest = max(window, observed_window(y_v.shape[0] // 5, y_v))
+    target = None
+    while True:
+        fits = {
+            name: _window_fit(
+                study,
+                model_rhs,
+                features,
+                substeps,
+                y_v[:window],
+                t_v[:window],
+                inputs.subset(0, window),
+                guess[:window],
+            )
+            for name, model_rhs in models.items()
+        }
+        worst = max(_x0_relative_se(f, spread) for f in fits.values())
+        if target is None:  # the window as given: kept unless undetermined
+            target = X0_RELATIVE_SE if worst > X0_UNDETERMINED else np.inf
+        if worst <= target or window >= longest:
+            break
+        window = min(observed_window(2 * window, y_v), longest)
+    starts = {
+        name: (f.x[0], f.offsets if study.offsets else 0.0) for name, f in fits.items()
+    }
+    return window, starts
 
 
 def window_runs(study, models: dict, features, substeps, record, window) -> dict:
-    """Initial state from the leading ``window`` samples, then a free run,
+    """Initial state from the leading ``window`` samples (lengthened where
+    they do not determine it: :func:`determined_window`), then a free run,
     per model; RMSE over the samples after the window.
 
     ``study`` is read for ``mme``, ``inputs.hold``, ``measurement``,
@@ -235,24 +323,26 @@ def window_runs(study, models: dict, features, substeps, record, window) -> dict
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = measurement_function(study.measurement)
     guess = record_guess(study, record)
+    window, starts = determined_window(
+        study, models, features, substeps, record, inputs_v, guess, window
+    )
     runs = {}
     for name, model_rhs in models.items():
-        x0, offsets = window_fit(
-            study,
-            model_rhs,
-            features,
-            substeps,
-            y_v[:window],
-            t_v[:window],
-            inputs_v.subset(0, window),
-            guess[:window],
-        )
+        x0, offsets = starts[name]
 
         def shifted(x, offsets=offsets):
             return measure(x) + offsets
 
         runs[name] = free_run(
-            model_rhs, x0, t_v, inputs_v, substeps, shifted, y_v, window, guess
+            model_rhs,
+            x0,
+            t_v,
+            inputs_v,
+            substeps,
+            shifted,
+            y_v,
+            window,
+            run_guess(study, name, guess),
         )
         runs[name].window = window
     return runs

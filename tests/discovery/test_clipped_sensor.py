@@ -29,6 +29,7 @@ from pysindy_mme.cli.arguments import build_request
 from pysindy_mme.cli.parser import build_parser
 from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.machines import cascaded_tanks, clipped_oscillator
+from pysindy_mme.protocols.runs import observed_window
 
 MACHINE = clipped_oscillator()
 REC = MACHINE.record(0)
@@ -208,10 +209,14 @@ def test_a_validation_record_on_the_ceiling_is_cut_and_its_window_lengthened():
     res = study(validation=(val.y, val.t), validation_window=5)
     assert res.study.validation_clipped_cut == (lead, 0)
     np.testing.assert_array_equal(res.study.validation[1], val.t[lead:])
-    assert res.gain.validation_window == window
+    # 5 readings: the window the clipped readings lengthen to ...
+    assert observed_window(5, res.study.validation[0]) == window
+    # ... and further while it leaves an initial state undetermined (5 %)
+    used = res.gain.validation_window
+    assert used >= window
     runs = res.gain.validation_runs
-    assert runs["extended"].window == runs["assumed"].window == window
-    assert f"initial state from its first {window} samples" in str(res)
+    assert runs["extended"].window == runs["assumed"].window == used
+    assert f"initial state from its first {used} samples" in str(res)
     assert f"the validation record's first {lead} samples are all on" in str(res)
     assert np.isfinite(res.gain.validation_rmse_extended).all()
 

@@ -10,7 +10,11 @@ import pytest
 from paper_case import VDP, paper_discover
 
 from pysindy_mme import PowerLibrary
-from pysindy_mme.discovery.doubts import doubt_notes, generalisation_note
+from pysindy_mme.discovery.doubts import (
+    correlated_pairs,
+    doubt_notes,
+    generalisation_note,
+)
 
 NAMES = ["k", "x1 in x2'", "x1^3 in x2'"]
 
@@ -45,10 +49,23 @@ def test_unconverged_fit_names_the_least_determined_first_and_what_to_try():
 def test_look_alike_terms_are_named_with_their_correlation():
     corr = np.eye(3)
     corr[1, 2] = corr[2, 1] = -0.995
-    fit = _fit([2.0, -1.0, 0.5], [0.01, 0.02, 0.01], corr)
+    # x1^3's standard error is 12 % of its value: not pinned down alone
+    fit = _fit([2.0, -1.0, 0.5], [0.01, 0.02, 0.06], corr)
     (note,) = doubt_notes(fit, NAMES)
     assert "x1 in x2' and x1^3 in x2' can hardly be told apart" in note
     assert "-0.995" in note
+
+
+def test_correlated_but_each_precise_estimates_are_not_look_alikes():
+    # a long record of a limit cycle: the period pins one combination, the
+    # correlation goes to -1, yet each value is known to 2-4 %
+    corr = np.eye(3)
+    corr[1, 2] = corr[2, 1] = -0.99999
+    fit = _fit([2.0, -1.0, 0.5], [0.01, 0.02, 0.01], corr)
+    assert doubt_notes(fit, NAMES) == []
+    # one of them 6 % (over the 5 % limit): named
+    fit = _fit([2.0, -1.0, 0.5], [0.01, 0.02, 0.03], corr)
+    assert "can hardly be told apart" in doubt_notes(fit, NAMES)[0]
 
 
 def test_undetermined_and_weak_quantities_are_named():
@@ -97,3 +114,16 @@ def test_look_alike_terms_that_fit_one_record_only_are_flagged():
     else:
         (note,) = notes
         assert "x1 |x2| in x2'" in note and "may be look-alikes" in note
+
+
+def test_correlated_pairs_leave_out_pairs_whose_values_are_each_determined():
+    # the 2,500 s Van der Pol record's x2 and x1 in x2': se 0.06 % and 0.01 %
+    se = np.array([6e-4, 1e-4])
+    cov = np.array([[1.0, -0.99995], [-0.99995, 1.0]]) * np.outer(se, se)
+    names = ["x2 in x2'", "x1 in x2'"]
+    none = np.zeros(2, dtype=bool)
+    assert correlated_pairs(cov, names, none, limit=0.995) != []  # as before
+    assert correlated_pairs(cov, names, none, limit=0.995, values=[1.0, -1.0]) == []
+    # a value near zero is not determined relative to itself: still named
+    (pair,) = correlated_pairs(cov, names, none, limit=0.995, values=[1.0, -1e-3])
+    assert pair[:2] == ("x2 in x2'", "x1 in x2'")
