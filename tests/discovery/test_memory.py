@@ -84,3 +84,19 @@ def test_a_constant_error_gives_no_evidence(constant):
     d[:, 1] = constant
     (ev,) = memory_evidence(x, d, error_states=[1])
     assert not ev.suspected
+
+
+def test_the_neighbour_average_is_scikit_learns_regressor():
+    from sklearn.neighbors import KNeighborsRegressor
+
+    from pysindy_mme.discovery.memory import N_NEIGHBOURS, _knn_predict
+
+    rng = np.random.default_rng(3)
+    f = rng.standard_normal((3000, 4))
+    y = np.sin(f[:, 0]) + 0.1 * rng.standard_normal(3000)
+    train, test = f[:2400], f[2400:]
+    expected = (
+        KNeighborsRegressor(n_neighbors=N_NEIGHBOURS).fit(train, y[:2400]).predict(test)
+    )
+    got = _knn_predict(train, y[:2400], test)
+    np.testing.assert_allclose(got, expected, rtol=1e-12)
