@@ -55,19 +55,3 @@ def test_a_held_out_miss_keeps_the_missing_state_in_the_verdict():
     assert "a state the model does not have is likely" in found.verdict
     assert "hidden_states={'z': 'x2'}" in found.verdict
     assert found.advice[0].startswith("a hidden state entering x2'")
-
-
-def test_at_the_noise_on_the_record_but_not_off_it_is_a_partial_explanation():
-    # quadratic drag over 1,000 s, most of it near rest: linear damping fits
-    # the record to the noise and misses the held-out large amplitudes by 3x
-    ev = _evidence(0.30)
-    ev.memory = []
-    found = conclude(ev)
-    assert found.label == "partly explained"
-    assert "explain part of it" in found.verdict
-    assert "only to x1 3x the noise" in found.verdict
-    assert "look-alikes" in found.reasons[1]
-    # at 1.5x the noise off the record (FIT_FACTOR): explained
-    ev = _evidence(0.15)
-    ev.memory = []
-    assert conclude(ev).label == "explained"
