@@ -13,10 +13,11 @@ than the evidence. One of five conclusions:
     channel worse by that factor); the extended model's free run fits its
     record within ``FIT_FACTOR`` (1.5) times the noise on every channel;
     no kept term or parameter is unidentified (an exact trade-off, a
-    correlation of estimates beyond ``TRADE_OFF_CORRELATION`` (0.995), a
-    standard error larger than the value); no parameter ran away (moved by
-    more than ``RUNAWAY_FACTOR`` (10) times from its guess, or changed sign)
-    or sits on a bound; the noise level is known.
+    correlation of estimates beyond ``TRADE_OFF_CORRELATION`` (0.995) where
+    one of them is imprecise, a standard error larger than the value); no
+    parameter ran away (moved by more than ``RUNAWAY_FACTOR`` (10) times
+    from its guess, or changed sign) or sits on a bound; the noise level is
+    known.
 ``"partly explained"``
     As "explained", except that the extended model still misses its record
     by more than ``FIT_FACTOR`` times the noise: the misfit left is named.
