@@ -283,27 +283,36 @@ def determined_window(study, models, features, substeps, record, inputs, guess, 
     y_v, t_v, _ = record
     spread = np.nanstd(np.asarray(guess, dtype=float), axis=0)
     longest = max(window, observed_window(y_v.shape[0] // 5, y_v))
-    target = None
-    while True:
-        fits = {
+
+    def fitted(w):
+        return {
             name: _window_fit(
                 study,
                 model_rhs,
                 features,
                 substeps,
-                y_v[:window],
-                t_v[:window],
-                inputs.subset(0, window),
-                guess[:window],
+                y_v[:w],
+                t_v[:w],
+                inputs.subset(0, w),
+                guess[:w],
             )
             for name, model_rhs in models.items()
         }
-        worst = max(_x0_relative_se(f, spread) for f in fits.values())
-        if target is None:  # the window as given: kept unless undetermined
-            target = X0_RELATIVE_SE if worst > X0_UNDETERMINED else np.inf
-        if worst <= target or window >= longest:
-            break
-        window = min(observed_window(2 * window, y_v), longest)
+
+    fits = fitted(window)
+    worst = max(_x0_relative_se(f, spread) for f in fits.values())
+    if worst > X0_UNDETERMINED:
+        while worst > X0_RELATIVE_SE and window < longest:
+            longer = min(observed_window(2 * window, y_v), longest)
+            try:
+                # a model that cannot follow a longer stretch (it diverges,
+                # or the stretch leaves a state unobservable) keeps the
+                # window it could follow
+                longer_fits = fitted(longer)
+            except (DivergenceError, UnobservableError, np.linalg.LinAlgError):
+                break
+            window, fits = longer, longer_fits
+            worst = max(_x0_relative_se(f, spread) for f in fits.values())
     starts = {
         name: (f.x[0], f.offsets if study.offsets else 0.0) for name, f in fits.items()
     }

@@ -136,3 +136,19 @@ def test_a_models_own_run_as_the_guess_gives_the_same_run(rate):
     for name in plain:
         np.testing.assert_allclose(guided[name].x, plain[name].x, rtol=0, atol=1e-9)
         np.testing.assert_allclose(guided[name].rmse, plain[name].rmse, rtol=1e-9)
+
+
+def test_a_model_that_cannot_follow_a_longer_window_keeps_the_last_one(monkeypatch):
+    from pysindy_mme.exceptions import DivergenceError
+    from pysindy_mme.protocols import runs
+
+    fit = runs._window_fit
+
+    def failing_beyond_200(study, model_rhs, features, substeps, y, *rest):
+        if y.shape[0] > 200:
+            raise DivergenceError("the model blows up over this window")
+        return fit(study, model_rhs, features, substeps, y, *rest)
+
+    monkeypatch.setattr(runs, "_window_fit", failing_beyond_200)
+    runs_ = _runs(_record(4000))
+    assert runs_["extended"].window == runs_["assumed"].window == 200
