@@ -258,14 +258,14 @@ def combined(rmse, floor) -> float:
 def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
     found = _without_terms(ev) if not ev.terms else _with_terms(ev)
-    found = _with_overshoots(_with_memory(found, ev.memory, ev), ev.overshoots)
+    found = _with_overshoots(_with_memory(found, ev), ev.overshoots)
     extra = tuple(ev.vanished) + tuple(ev.gauges)
     if extra:
         found = replace(found, reasons=tuple(found.reasons) + extra)
     return found
 
 
-def _with_memory(found: Conclusion, missing, ev: Evidence) -> Conclusion:
+def _with_memory(found: Conclusion, ev: Evidence) -> Conclusion:
     """A likely missing state: a reason, and its advice first (label kept).
 
     Not where a model without the state runs free at the noise on its record
@@ -276,6 +276,7 @@ def _with_memory(found: Conclusion, missing, ev: Evidence) -> Conclusion:
     at 40 kHz the history "explained" 63 % of a ``d`` that the present
     explained none of, and the found static terms ran free at the noise.
     The finding is then a reason, not the verdict."""
+    missing = ev.memory
     if not missing or found.label == "consistent":
         return found
     if found.label == "explained" and _runs_at_noise(ev):

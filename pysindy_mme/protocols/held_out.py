@@ -156,9 +156,9 @@ class HeldOut(ValidationProtocol):
             rest.setdefault("states_guess", np.asarray(ctx.states)[held])
         if ctx.in_sample_runs is not None:
             # A limit cycle's free run over 750 periods from MME's states
-            # (the data's phase) took Newton 9 blocks; from the same model's
-            # own run it joins in one (0.57 s against 0.13 s at 2 x 10^5
-            # samples)
+            # (the data's phase) took Newton eight block solves, two of them
+            # failed; from the same model's own run it joins in one (0.57 s
+            # against 0.31 s at 2 x 10^5 samples)
             rest.setdefault(
                 "run_guesses",
                 {name: run.x[held] for name, run in ctx.in_sample_runs.items()},

@@ -218,7 +218,13 @@ def window_fit(study, model_rhs, features, substeps, y, t, inputs, guess):
     """``(x0, offsets)`` of ``model_rhs`` fitted to the window ``y`` (an
     output-error fit of the initial state and, with ``study.offsets``, the
     measurement offsets; nothing else)."""
-    fit = _window_fit(study, model_rhs, features, substeps, y, t, inputs, guess)
+    return _start(
+        study, _window_fit(study, model_rhs, features, substeps, y, t, inputs, guess)
+    )
+
+
+def _start(study, fit):
+    """``(x0, offsets)`` of a window fit."""
     return fit.x[0], (fit.offsets if study.offsets else 0.0)
 
 
@@ -313,10 +319,7 @@ def determined_window(study, models, features, substeps, record, inputs, guess, 
                 break
             window, fits = longer, longer_fits
             worst = max(_x0_relative_se(f, spread) for f in fits.values())
-    starts = {
-        name: (f.x[0], f.offsets if study.offsets else 0.0) for name, f in fits.items()
-    }
-    return window, starts
+    return window, {name: _start(study, f) for name, f in fits.items()}
 
 
 def window_runs(study, models: dict, features, substeps, record, window) -> dict:
