@@ -800,8 +800,32 @@ def step_size_check(
     return None
 
 
+@dataclass(frozen=True)
+class SmoothingCheck:
+    """What refitting with every smoothed kink at half its width showed.
+
+    Attributes
+    ----------
+    ok : bool
+        No coefficient or parameter moved by half a standard error.
+    text : str
+        The finding, as a note (or the line shown with the extended model).
+    misfit_ratio : float or None
+        The extended model's misfit beyond the noise at half the width (and
+        twice the RK4 steps), as a share of the misfit at the width of the
+        fit (RMSE-like: the square root of the ratio of the costs in excess
+        of the residuals' count). Below 1 the misfit follows the
+        integration of the kinks; None where not measured (the refit failed,
+        or the fit is within the noise already).
+    """
+
+    ok: bool
+    text: str
+    misfit_ratio: float | None = None
+
+
 def smoothing_check(engine, fit, library, describe, names=None):
-    """Refit with every smoothed kink at half its width: ``(ok, text)``.
+    """Refit with every smoothed kink at half its width (a :class:`SmoothingCheck`).
 
     A library that smooths its kinks for the integrators (``widths_``, as
     :class:`~pysindy_mme.PhysicsLibrary` does) must show that the width does
@@ -818,26 +842,49 @@ def smoothing_check(engine, fit, library, describe, names=None):
     widths = library.widths_
     what = ", ".join(f"{describe(c)} over {sig(widths[c], 2)}" for c in columns)
     if not check.ok:
-        return False, (
+        return SmoothingCheck(
+            False,
             f"kinks integrated smoothed ({what}): the model cannot be fitted at "
             f"half the width ({check.message}); its non-smooth terms depend on "
-            "the smoothing"
+            "the smoothing",
         )
+    ratio = _misfit_ratio(fit, check)
     se = fit.std_errors
     moved = np.abs(check.theta - fit.theta) > 0.5 * np.where(np.isfinite(se), se, 0.0)
     if np.any(moved):
         most = _moved_most(fit.theta, check.theta, se, names)
-        return False, (
+        return SmoothingCheck(
+            False,
             f"kinks integrated smoothed ({what}); at half the width (and twice "
             f"the RK4 steps) the result moves{most}: "
             "treat the non-smooth terms' coefficients with care (PhysicsLibrary("
-            "smoothing=...) sets the width)"
+            "smoothing=...) sets the width)",
+            ratio,
         )
-    return True, (
+    return SmoothingCheck(
+        True,
         f"kinks integrated smoothed ({what}, PhysicsLibrary smoothing); refitted "
         "at half the width and twice the RK4 steps, no coefficient or parameter "
-        "moved by half a standard error: the width does not change the result"
+        "moved by half a standard error: the width does not change the result",
+        ratio,
     )
+
+
+def _misfit_ratio(fit, check) -> float | None:
+    """:attr:`SmoothingCheck.misfit_ratio` of ``fit`` and its refit ``check``.
+
+    A cost is a chi-square in noise units: a model that fits to the noise
+    leaves about one unit per residual degree of freedom, ``inflation``
+    units with correlated residuals (:attr:`OutputErrorFit.inflation`, as
+    the consistency test reads it). What is beyond that is the model's
+    misfit; measured only where it is at least as large as the noise's
+    share itself (a ratio of two noise-sized numbers says nothing).
+    """
+    count = fit.inflation * fit.dof
+    excess = fit.cost - count
+    if not (np.isfinite(excess) and excess >= count and np.isfinite(check.cost)):
+        return None
+    return float(np.sqrt(max(check.cost - count, 0.0) / excess))
 
 
 def _half_width_refit(engine, fit, library):

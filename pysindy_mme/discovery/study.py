@@ -275,7 +275,7 @@ def run_study(study, progress: Progress) -> Discovery:
             estimate.x,
         )
     progress.stage("5. gain measured")
-    notes, smoothing = _notes(
+    notes, smoothing, kink_misfit = _notes(
         study, assumed, estimate, proposals, confirmation, gain, engine, step_note
     )
     terms, estimates = _terms(study, proposals, confirmation)
@@ -303,7 +303,15 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     conclusion = conclude(
         _evidence(
-            study, assumed, confirmation, gain, names, trade_offs, crossed, memory
+            study,
+            assumed,
+            confirmation,
+            gain,
+            names,
+            trade_offs,
+            crossed,
+            memory,
+            kink_misfit,
         )
     )
     for note in notes:
@@ -356,7 +364,15 @@ def _quantity_names(study, proposals, fit) -> list:
 
 
 def _evidence(
-    study, assumed, confirmation, gain, names, trade_offs, crossed=(), memory=()
+    study,
+    assumed,
+    confirmation,
+    gain,
+    names,
+    trade_offs,
+    crossed=(),
+    memory=(),
+    kink_misfit=None,
 ) -> Evidence:
     fit = confirmation.fit or assumed.fit
     noise = study.noise_doubt
@@ -388,6 +404,7 @@ def _evidence(
         parameter_advice=doubt_advice,
         noise_doubt=noise,
         overshoots=list(crossed),
+        kink_misfit=kink_misfit,
         memory=[
             MissingState(
                 study.state_names[m.state],
@@ -698,13 +715,16 @@ def _notes(
     study, assumed, estimate, proposals, confirmation, gain, engine, step_note=None
 ):
     """Everything the user must know about how far to trust the numbers:
-    ``(notes, smoothing)``, the second the smoothing check's finding when
-    it found the width harmless (shown with the extended model).
+    ``(notes, smoothing, kink_misfit)``, the second the smoothing check's
+    finding when it found the width harmless (shown with the extended
+    model), the third its :attr:`~.steps.SmoothingCheck.misfit_ratio`
+    (None: not measured).
     ``step_note``: the integrator check's (:func:`~.steps.step_size_check`),
     made while the fit still had its linearisation."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
     notes += list(confirmation.notes)
     shown = ""
+    kink_misfit = None
     fit = confirmation.fit
     if fit is not None:
         names = _term_names(study, proposals, confirmation.slots)
@@ -734,10 +754,11 @@ def _notes(
             engine, fit, proposals.library, proposals.name, names
         )
         if smoothing is not None:
-            if smoothing[0]:
-                shown = smoothing[1]
+            if smoothing.ok:
+                shown = smoothing.text
             else:
-                notes.append(smoothing[1])
+                notes.append(smoothing.text)
+            kink_misfit = smoothing.misfit_ratio
         smoothed = (
             set()
             if smoothing is None
@@ -756,7 +777,7 @@ def _notes(
                 "effects (Coulomb, Saturation, Overflow, ...) integrate their kinks "
                 "smoothed and check that the width does not matter"
             )
-    return notes, shown
+    return notes, shown, kink_misfit
 
 
 def _effective(fit) -> str:

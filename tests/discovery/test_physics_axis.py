@@ -36,9 +36,17 @@ AXIS = positioning_axis(F0=F0)
 NAMES = ["q", "v", "u"]
 
 
-def axis_study(seed, duration=25.0):
-    rec = AXIS.record(seed, duration=duration)
+def axis_study(seed, duration=25.0, machine=AXIS, assumed_model=None):
+    """The study of the module docstring; ``assumed_model(x, t, u)`` replaces
+    the grey box (fixed constants, no parameters) when given."""
+    rec = machine.record(seed, duration=duration)
     train, test = rec.split(0.8)
+    noise = rec.quantisation_step**2 / 12.0 + float(rec.noise_sd[0]) ** 2
+    grey_box = (
+        StudyOptions(parameters=machine.parameters, feature_names=NAMES)
+        if assumed_model is None
+        else StudyOptions(feature_names=NAMES)
+    )
     library = PhysicsLibrary(
         [Coulomb("v"), Stribeck("v", 0.02)], include_bias=True, names=NAMES
     )
@@ -48,14 +56,16 @@ def axis_study(seed, duration=25.0):
             train.y,
             train.t,
             u=train.u,
-            assumed_model=AXIS.assumed_model,
+            assumed_model=machine.assumed_model
+            if assumed_model is None
+            else assumed_model,
             n_states=2,
             measured=[0],
-            noise_variance=rec.quantisation_step**2 / 12.0,
+            noise_variance=noise,
             feature_library=library,
             error_states=[1],
             validation=(test.y, test.t, test.u),
-            options=StudyOptions(parameters=AXIS.parameters, feature_names=NAMES),
+            options=grey_box,
             mme=MME(input_hold="zoh"),
         )
 
@@ -105,3 +115,81 @@ def test_axis_short_record_names_friction_and_the_smoothing():
     assert "kinks integrated smoothed (sign(v) over" in str(res)
     assert res.conclusion == "partly explained"
     assert any("misses its record" in reason for reason in res.reasons)
+    # ... and that misfit is the smoothing's, not a missing effect's
+    assert_misfit_named_the_kinks(res)
+
+
+def assert_misfit_named_the_kinks(res):
+    assert res.conclusion == "partly explained"
+    assert "integration of the smoothed kinks" in res.verdict, res.verdict
+    assert not any("not in the library" in reason for reason in res.reasons)
+    assert not any("hidden state" in advice for advice in res.advice)
+
+
+def assert_misfit_named_an_effect_missed(res):
+    assert "integration of the smoothed kinks" not in res.verdict, res.verdict
+    assert any("not in the library" in reason for reason in res.reasons), (
+        res.conclusion,
+        res.reasons,
+    )
+
+
+def _fixed(mass, damping):
+    """The axis' model with fixed constants (K_u = 100 N/V known)."""
+
+    def model(x, t, u):
+        return np.column_stack([x[:, 1], (100.0 * u[:, 0] - damping * x[:, 1]) / mass])
+
+    return model
+
+
+# Where the misfit left is the smoothing's and where it is an effect the
+# library lacks. KINK_MISFIT_SHARE (0.7) was set on the default axis' seed 0
+# (0.60 of the misfit left at half the width), the 40 kg axis at 500 Hz
+# (0.58) and breakaway friction above the sliding one (0.75: sticking the
+# library cannot express); seed 1, the 2 um noise and the viscous rows were
+# run after it; the rows marked held out were written here first, run once.
+KINK_CASES = [
+    # (id, machine, seed, fixed model or None, the misfit is the kinks')
+    ("default axis, seed 1", AXIS, 1, None, True),
+    (
+        "40 kg at 500 Hz",
+        positioning_axis(M=40.0, c=80.0, Fc=8.0, F0=2.0, rate=500.0),
+        0,
+        None,
+        True,
+    ),
+    (
+        "60 kg, encoder with 2 um noise",
+        positioning_axis(M=60.0, c=120.0, Fc=12.0, F0=-1.5, noise_sd=2e-6),
+        0,
+        None,
+        True,
+    ),
+    (
+        "120 kg at 800 Hz (held out)",
+        positioning_axis(M=120.0, c=250.0, Fc=30.0, F0=5.0, rate=800.0),
+        7,
+        None,
+        True,
+    ),
+    ("breakaway friction 28 N", positioning_axis(F0=F0, Fs=28.0), 0, None, False),
+    ("viscous friction fixed 5 % low", AXIS, 0, _fixed(95.0, 190.0), False),
+    ("mass fixed at 80 kg (held out)", AXIS, 3, _fixed(80.0, 200.0), False),
+]
+
+
+@pytest.mark.slow  # seven whole studies
+@pytest.mark.parametrize("case", KINK_CASES, ids=lambda c: c[0])
+def test_the_misfit_left_is_named_the_kinks_only_where_it_follows_the_width(case):
+    _, machine, seed, model, kinks = case
+    res = axis_study(seed, duration=20.0, machine=machine, assumed_model=model)
+    if res.conclusion != "partly explained":
+        # the rule only reads a fit that converged and holds out of sample
+        assert not kinks, (res.conclusion, res.reasons)
+        assert "integration of the smoothed kinks" not in res.verdict
+        return
+    if kinks:
+        assert_misfit_named_the_kinks(res)
+    else:
+        assert_misfit_named_an_effect_missed(res)
