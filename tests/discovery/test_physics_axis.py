@@ -173,13 +173,23 @@ KINK_CASES = [
         None,
         True,
     ),
+    # a stiff kink: the refit after the smoothing artefact (a constant) is
+    # dropped did not converge from the fit's trajectory ("inconclusive"
+    # before session 25); it now falls back to MME's states
+    (
+        "150 kg at 2 kHz, no offset",
+        positioning_axis(M=150.0, c=300.0, Fc=35.0, F0=0.0, rate=2000.0),
+        0,
+        None,
+        True,
+    ),
     ("breakaway friction 28 N", positioning_axis(F0=F0, Fs=28.0), 0, None, False),
     ("viscous friction fixed 5 % low", AXIS, 0, _fixed(95.0, 190.0), False),
     ("mass fixed at 80 kg (held out)", AXIS, 3, _fixed(80.0, 200.0), False),
 ]
 
 
-@pytest.mark.slow  # seven whole studies
+@pytest.mark.slow  # eight whole studies
 @pytest.mark.parametrize("case", KINK_CASES, ids=lambda c: c[0])
 def test_the_misfit_left_is_named_the_kinks_only_where_it_follows_the_width(case):
     _, machine, seed, model, kinks = case
