@@ -162,16 +162,22 @@ def _what_is_wrong(res) -> list:
                 f"{sig(100 * max(m.r2_static, 0.0), 3)}%",
                 f"{sig(100 * max(m.r2_history, 0.0), 3)}%",
                 str(m.lag),
+                _null_cell(m),
                 "LIKELY MISSING STATE" if m.suspected else "no",
             ]
             for m in res.memory
         ]
         out.append(
             "Memory of d(t) (cross-validated share predicted by the present states "
-            "and inputs, and with the states `lag` samples earlier too):"
+            "and inputs, and with the states `lag` samples earlier too; where a "
+            "state is suspected, what the history adds on a record simulated from "
+            "the model found, which has none):"
         )
         out.append(
-            text_table(["state", "present", "with history", "lag", "memory"], rows)
+            text_table(
+                ["state", "present", "with history", "lag", "null record", "memory"],
+                rows,
+            )
         )
     return out + [""]
 
@@ -419,3 +425,11 @@ def format_discovery(res) -> str:
     if res.warnings:
         out += ["", "Warnings:"] + [f"- {w}" for w in res.warnings]
     return "\n".join(out) + "\n"
+
+
+def _null_cell(m) -> str:
+    """The history's gain on the null record against the data's (or ``-``)."""
+    null = getattr(m, "null_gain", None)
+    if null is None:
+        return "-"
+    return f"+{sig(100 * max(null, 0.0), 2)}% (data +{sig(100 * m.history_gain, 2)}%)"

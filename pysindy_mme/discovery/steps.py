@@ -37,6 +37,7 @@ from .doubts import stop_reason
 from .gain import Gain
 from .identifiability import exact_trade_offs, gauge_choice
 from .long_record import confirm_long_record, reduced_study, search_part
+from .memory import memory_evidence
 
 __all__ = [
     "AssumedFit",
@@ -54,6 +55,7 @@ __all__ = [
     "rk4_steps_of",
     "rk4_substeps",
     "step_size_check",
+    "memory_null",
     "in_sample_run",
     "hold_out",
     "overshoots",
@@ -495,6 +497,66 @@ def estimate_model_error(study, assumed: AssumedFit) -> ErrorEstimate:
     return ErrorEstimate(
         mme=mme, x=x_hat, d=d_hat, summary=summary, notes=notes, physical=physical
     )
+
+
+def memory_null(study, estimate, x_null, seed: int = 0):
+    """``null(i)``: what the memory test finds in ``d_i`` on a record of a
+    model without any state the assumed model lacks (None: not measured).
+
+    The record is the measurement of ``x_null`` (a trajectory of the model
+    the study found, whose correction is a function of the present states)
+    plus fresh noise of the study's covariance (seed ``seed``: the study is
+    repeatable); MME estimates ``d`` on it at the study's ``W``, from
+    ``x_null``, and the memory test reads it as it read the study's. What
+    the history adds there (:attr:`~.memory.MemoryEvidence.history_gain`)
+    is what MME's own estimation, at this sampling rate, noise and ``W``,
+    shows as memory. Computed at the first call only (one MME solve at a
+    fixed ``W``); asked for only where the test suspects a missing state
+    (:func:`~.memory.discount_estimation_error`).
+    """
+    cache = {}
+
+    def null(i):
+        if "evidence" not in cache:
+            cache["evidence"] = _null_memory(study, estimate, x_null, seed)
+        found = cache["evidence"]
+        return None if found is None else found.get(int(i))
+
+    return null
+
+
+def _null_memory(study, estimate, x_null, seed):
+    """``{state: history gain}`` on the null record (None: MME fails there)."""
+    fitted_mme = estimate.mme
+    mme = clone(fitted_mme)
+    mme.set_params(W=np.asarray(fitted_mme.W_, dtype=float))
+    x_null = np.asarray(x_null, dtype=float)
+    with np.errstate(all="ignore"):
+        y = np.asarray(measurement_function(study.measurement)(x_null), float)
+    y = np.where(np.isfinite(study.y), y, np.nan)  # the record's gaps and clips
+    rng = np.random.default_rng(seed)
+    y = y + rng.multivariate_normal(
+        np.zeros(y.shape[1]), np.asarray(study.noise_cov, float), y.shape[0]
+    )
+    states = [
+        int(i)
+        for i in study.error_states
+        if study.hidden is None or int(i) not in study.hidden.indices
+    ]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _fit_mme(mme, study, y, x_guess=x_null)
+    except (DivergenceError, UnobservableError, np.linalg.LinAlgError):
+        return None
+    found = memory_evidence(
+        mme.smoothed_x_,
+        mme.d_,
+        study.u,
+        states,
+        study.starts if study.starts.size else (0,),
+    )
+    return {ev.state: ev.history_gain for ev in found}
 
 
 def _mme_at_guesses(study):

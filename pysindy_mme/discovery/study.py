@@ -27,7 +27,7 @@ from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
 from .identifiability import exact_trade_offs
 from .inputs import check_study
-from .memory import memory_evidence
+from .memory import discount_estimation_error, memory_evidence
 from .options import as_options, refuse_moved
 from .propose import propose_terms
 from .result import Discovery
@@ -38,6 +38,7 @@ from .steps import (
     fit_assumed_model,
     hold_out,
     measure_gain,
+    memory_null,
     output_error_engine,
     overshoots,
     parameter_sensitivities,
@@ -301,6 +302,20 @@ def run_study(study, progress: Progress) -> Discovery:
         ],
         study.starts if study.starts.size else (0,),
     )
+    if any(m.suspected for m in memory):
+        memory = discount_estimation_error(
+            memory, memory_null(study, estimate, fits[final].x)
+        )
+        notes += [
+            f"the model error of {study.state_names[m.state]}' has a history that "
+            f"predicts {100 * m.history_gain:.0f}% of it beyond the present states, "
+            "but on a record simulated from the model found (which has no such "
+            f"state) and estimated the same way it predicts {100 * m.null_gain:.0f}"
+            "%: MME's own estimation error shows as memory at this sampling rate "
+            "and noise, so no missing state is claimed"
+            for m in memory
+            if m.null_gain is not None and not m.suspected
+        ]
     conclusion = conclude(
         _evidence(
             study,
