@@ -67,6 +67,7 @@ __all__ = [
     "Overshoot",
     "MissingState",
     "conclude",
+    "memory_decides",
     "FIT_FACTOR",
     "HELD_OUT_MARGIN",
     "KINK_MISFIT_SHARE",
@@ -285,6 +286,17 @@ def conclude(ev: Evidence) -> Conclusion:
     if extra:
         found = replace(found, reasons=tuple(found.reasons) + extra)
     return found
+
+
+def memory_decides(ev: Evidence) -> bool:
+    """Whether a suspected missing state in ``ev`` would be claimed (a reason
+    and advice of the conclusion), not set aside by :func:`_with_memory`."""
+    if not ev.memory:
+        return False
+    found = _without_terms(ev) if not ev.terms else _with_terms(ev)
+    if found.label == "consistent":
+        return False
+    return not (found.label == "explained" and _runs_at_noise(ev))
 
 
 def _with_memory(found: Conclusion, ev: Evidence) -> Conclusion:

@@ -22,6 +22,7 @@ from .conclusion import (
     Evidence,
     MissingState,
     conclude,
+    memory_decides,
 )
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
@@ -302,7 +303,24 @@ def run_study(study, progress: Progress) -> Discovery:
         ],
         study.starts if study.starts.size else (0,),
     )
-    if any(m.suspected for m in memory):
+
+    def evidence_with(memory):
+        return _evidence(
+            study,
+            assumed,
+            confirmation,
+            gain,
+            names,
+            trade_offs,
+            crossed,
+            memory,
+            kink_misfit,
+        )
+
+    evidence = evidence_with(memory)
+    if memory_decides(evidence):
+        # the claim would be made: weigh it against a record without a state
+        # first (one MME solve; not made where the claim is not)
         memory = discount_estimation_error(
             memory, memory_null(study, estimate, fits[final].x)
         )
@@ -316,19 +334,8 @@ def run_study(study, progress: Progress) -> Discovery:
             for m in memory
             if m.null_gain is not None and not m.suspected
         ]
-    conclusion = conclude(
-        _evidence(
-            study,
-            assumed,
-            confirmation,
-            gain,
-            names,
-            trade_offs,
-            crossed,
-            memory,
-            kink_misfit,
-        )
-    )
+        evidence = evidence_with(memory)
+    conclusion = conclude(evidence)
     for note in notes:
         warnings.warn(note, DiscoveryWarning, stacklevel=3)
     return Discovery(

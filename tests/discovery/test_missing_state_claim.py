@@ -12,13 +12,19 @@ still names the likely state.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pysindy as ps
 import pytest
 
 from pysindy_mme import StudyOptions, discover
-from pysindy_mme.discovery.conclusion import Evidence, MissingState, conclude
+from pysindy_mme.discovery.conclusion import (
+    Evidence,
+    MissingState,
+    conclude,
+    memory_decides,
+)
 from pysindy_mme.discovery.memory import MemoryEvidence, discount_estimation_error
 from pysindy_mme.systems import van_der_pol
 
@@ -139,3 +145,12 @@ def test_memory_at_40_khz_outside_the_library_is_not_a_missing_state():
     assert "does not have" not in res.verdict
     assert not any("hidden_states" in a for a in res.advice)
     assert any("no missing state is claimed" in w for w in res.warnings)
+
+
+def test_the_null_record_is_made_only_where_the_claim_would_be():
+    # a model that runs free at the noise sets the finding aside already: no
+    # null record (an MME solve) is made for it; a held-out miss keeps the
+    # claim, which the null record then weighs
+    assert not memory_decides(_evidence(0.1001))
+    assert memory_decides(_evidence(0.16))
+    assert not memory_decides(replace(_evidence(0.16), memory=[]))
