@@ -56,6 +56,7 @@ __all__ = [
     "rk4_substeps",
     "step_size_check",
     "memory_null",
+    "study_memory",
     "in_sample_run",
     "hold_out",
     "overshoots",
@@ -538,25 +539,32 @@ def _null_memory(study, estimate, x_null, seed):
     y = y + rng.multivariate_normal(
         np.zeros(y.shape[1]), np.asarray(study.noise_cov, float), y.shape[0]
     )
-    states = [
-        int(i)
-        for i in study.error_states
-        if study.hidden is None or int(i) not in study.hidden.indices
-    ]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             _fit_mme(mme, study, y, x_guess=x_null)
     except (DivergenceError, UnobservableError, np.linalg.LinAlgError):
         return None
-    found = memory_evidence(
-        mme.smoothed_x_,
-        mme.d_,
+    found = study_memory(study, mme.smoothed_x_, mme.d_)
+    return {ev.state: ev.history_gain for ev in found}
+
+
+def study_memory(study, x, d) -> list:
+    """The memory test (:func:`~.memory.memory_evidence`) of the states ``x``
+    and model error ``d`` estimated on a record of ``study``."""
+    return memory_evidence(
+        x,
+        d,
         study.u,
-        states,
+        # a hidden state's own equation is not tested: its estimate comes
+        # from the same d(t), so its relation to d is not evidence
+        [
+            int(i)
+            for i in study.error_states
+            if study.hidden is None or int(i) not in study.hidden.indices
+        ],
         study.starts if study.starts.size else (0,),
     )
-    return {ev.state: ev.history_gain for ev in found}
 
 
 def _mme_at_guesses(study):

@@ -28,7 +28,7 @@ from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
 from .identifiability import exact_trade_offs
 from .inputs import check_study
-from .memory import discount_estimation_error, memory_evidence
+from .memory import discount_estimation_error
 from .options import as_options, refuse_moved
 from .propose import propose_terms
 from .result import Discovery
@@ -49,6 +49,7 @@ from .steps import (
     set_aside_parameter_duplicates,
     smoothing_check,
     step_size_check,
+    study_memory,
 )
 
 __all__ = ["discover", "prepare_study", "run_study"]
@@ -290,19 +291,7 @@ def run_study(study, progress: Progress) -> Discovery:
     )
     final = "extended" if confirmation.slots else "assumed"
     crossed = overshoots(study, fits[final], gain.in_sample_runs[final], final)
-    memory = memory_evidence(
-        estimate.x,
-        estimate.d,
-        study.u,
-        # a hidden state's own equation is not tested: its estimate comes
-        # from the same d(t), so its relation to d is not evidence
-        [
-            int(i)
-            for i in study.error_states
-            if study.hidden is None or int(i) not in study.hidden.indices
-        ],
-        study.starts if study.starts.size else (0,),
-    )
+    memory = study_memory(study, estimate.x, estimate.d)
 
     def evidence_with(memory):
         return _evidence(
