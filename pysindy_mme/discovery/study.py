@@ -310,19 +310,8 @@ def run_study(study, progress: Progress) -> Discovery:
     if memory_decides(evidence):
         # the claim would be made: weigh it against a record without a state
         # first (one MME solve; not made where the claim is not)
-        memory = discount_estimation_error(
-            memory, memory_null(study, estimate, fits[final].x)
-        )
-        notes += [
-            f"the model error of {study.state_names[m.state]}' has a history that "
-            f"predicts {100 * m.history_gain:.0f}% of it beyond the present states, "
-            "but on a record simulated from the model found (which has no such "
-            f"state) and estimated the same way it predicts {100 * m.null_gain:.0f}"
-            "%: MME's own estimation error shows as memory at this sampling rate "
-            "and noise, so no missing state is claimed"
-            for m in memory
-            if m.null_gain is not None and not m.suspected
-        ]
+        memory, discounted = _weighed_memory(study, estimate, fits[final].x, memory)
+        notes += discounted
         evidence = evidence_with(memory)
     conclusion = conclude(evidence)
     for note in notes:
@@ -348,6 +337,24 @@ def run_study(study, progress: Progress) -> Discovery:
         smoothing=smoothing,
         memory=memory,
     )
+
+
+def _weighed_memory(study, estimate, x_null, memory):
+    """``(memory, notes)``: the memory test's findings weighed against a null
+    record of the trajectory ``x_null`` (:func:`~.memory.discount_estimation_error`,
+    :func:`~.steps.memory_null`), and a note for each suspicion it set aside."""
+    memory = discount_estimation_error(memory, memory_null(study, estimate, x_null))
+    notes = [
+        f"the model error of {study.state_names[m.state]}' has a history that "
+        f"predicts {100 * m.history_gain:.0f}% of it beyond the present states, "
+        "but on a record simulated from the model found (which has no such "
+        f"state) and estimated the same way it predicts {100 * m.null_gain:.0f}"
+        "%: MME's own estimation error shows as memory at this sampling rate "
+        "and noise, so no missing state is claimed"
+        for m in memory
+        if m.null_gain is not None and not m.suspected
+    ]
+    return memory, notes
 
 
 def _with_gauges(study, trade_offs) -> list:
