@@ -97,7 +97,6 @@ FIT_FACTOR = 1.5
 #: 0.7 asks the shrinking part to be nearly twice the other (a share of 0.58
 #: per halving), and a kink whose error shrinks slowly is not credited
 KINK_MISFIT_SHARE = 0.7
-KINK_MISFIT_SHARE = 0.7
 #: a parameter that moves by more than this factor from the user's guess has
 #: most likely absorbed a missing effect (or the guess was a slip)
 RUNAWAY_FACTOR = 10.0
@@ -280,20 +279,28 @@ def combined(rmse, floor) -> float:
 
 def conclude(ev: Evidence) -> Conclusion:
     """The conclusion the evidence supports (module docstring)."""
-    found = _without_terms(ev) if not ev.terms else _with_terms(ev)
-    found = _with_overshoots(_with_memory(found, ev), ev.overshoots)
+    found = _with_overshoots(_with_memory(_base(ev), ev), ev.overshoots)
     extra = tuple(ev.vanished) + tuple(ev.gauges)
     if extra:
         found = replace(found, reasons=tuple(found.reasons) + extra)
     return found
 
 
+def _base(ev: Evidence) -> Conclusion:
+    """The conclusion before the memory test and the overshoots."""
+    return _without_terms(ev) if not ev.terms else _with_terms(ev)
+
+
 def memory_decides(ev: Evidence) -> bool:
     """Whether a suspected missing state in ``ev`` would be claimed (a reason
     and advice of the conclusion), not set aside by :func:`_with_memory`."""
-    if not ev.memory:
-        return False
-    found = _without_terms(ev) if not ev.terms else _with_terms(ev)
+    return bool(ev.memory) and _claims_state(_base(ev), ev)
+
+
+def _claims_state(found: Conclusion, ev: Evidence) -> bool:
+    """Whether the memory test's finding enters ``found`` as a likely missing
+    state: not after "consistent", nor beside a model without the state that
+    runs free at the noise (:func:`_runs_at_noise`)."""
     if found.label == "consistent":
         return False
     return not (found.label == "explained" and _runs_at_noise(ev))
@@ -313,7 +320,7 @@ def _with_memory(found: Conclusion, ev: Evidence) -> Conclusion:
     missing = ev.memory
     if not missing or found.label == "consistent":
         return found
-    if found.label == "explained" and _runs_at_noise(ev):
+    if not _claims_state(found, ev):
         reasons = list(found.reasons) + [
             f"{m.evidence}, but a model without a state runs free at the noise "
             "on this record and on held-out data: no state is missing"

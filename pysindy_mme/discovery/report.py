@@ -337,12 +337,12 @@ def wall_lines(res) -> list:
             "fraction of a sample, so the data say it is a wall, not how stiff)"
             + (f"; {routed}" if routed else "; the excess leaves the system")
             + "."
-            + _gauged_scale(res, w["state"], "level")
+            + _gauged_level(res, w["state"])
         )
     return out
 
 
-def _gauged_scale(res, state, what) -> str:
+def _gauged_level(res, state) -> str:
     """`` The level is in the scale ...``: where a gauge fixes the scale of the
     unmeasured ``state``, a level read on it is in that scale, not in the
     state's own units (the cascaded tanks: ``b`` held at its guess 0.05
@@ -352,7 +352,7 @@ def _gauged_scale(res, state, what) -> str:
     for trade in trades:
         if getattr(trade, "gauge", "") and state in (trade.hidden_states or ()):
             return (
-                f" The {what} is in the scale of {state} that the gauge sets "
+                f" The level is in the scale of {state} that the gauge sets "
                 f"({trade.gauge} held at its guess: {state} is not measured and "
                 f"its scale is not determined), not in {state}'s own units: it "
                 "moves with the gauge's true value"
