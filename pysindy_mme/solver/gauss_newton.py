@@ -23,6 +23,7 @@ import numpy as np
 
 from ..core.blockwise import max_abs
 from ..exceptions import DivergenceError
+from . import scratch
 from .kkt import drop_kept_border
 from .records import SmootherResult
 
@@ -159,6 +160,9 @@ class GaussNewton:
                 converged = True
                 message = "converged (linear problem, exact step)"
                 break
+        # the steps' scratch columns served this solve; idle, they would sit
+        # beside whatever the caller does next (its statistics take their own)
+        scratch.release()
         res = self._result(
             W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
         )

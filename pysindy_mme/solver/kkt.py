@@ -41,6 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas, lapack
 
+from . import scratch
+
 __all__ = [
     "BandedKKT",
     "Border",
@@ -231,13 +233,28 @@ class KKTFactor:
             return KEt[keep], EtKE[np.ix_(keep, keep)]
         return None
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``."""
+    def solve(self, rhs: np.ndarray, rows=None) -> np.ndarray:
+        """Solve ``K z = rhs`` for ``rhs`` of shape ``(N, 2n)`` or ``(N, 2n, k)``.
+
+        ``rows`` (a contiguous slice of the samples) returns only those
+        samples of ``z`` (the covariance of the initial state needs sample 0
+        of ``n`` solutions: not a copy of ``n`` columns of the record).
+        """
         shape = rhs.shape
-        # a Fortran-ordered copy (the caller's array stays as it was)
-        cols = np.array(np.reshape(rhs, (self.N * 2 * self.n, -1)), order="F")
-        sol = self.solve_in_place(cols)
-        return np.ascontiguousarray(sol).reshape(shape)
+        m = self.N * 2 * self.n
+        flat = np.reshape(rhs, (m, -1))
+        # the columns, Fortran-ordered (the caller's array stays as it was):
+        # LAPACK solves them where they lie
+        work = np.array(flat.T, order="C")
+        self.solve_in_place(work.T)
+        if rows is None:
+            return np.ascontiguousarray(work.T).reshape(shape)
+        per = 2 * self.n
+        sl = range(self.N)[rows]
+        if sl.step != 1:  # pragma: no cover - a bug, not a user error
+            raise ValueError("rows must be a contiguous slice")
+        part = work[:, sl.start * per : sl.stop * per]
+        return np.ascontiguousarray(part.T).reshape((len(sl),) + shape[1:])
 
     def solve_in_place(self, cols: np.ndarray) -> np.ndarray:
         """Overwrite ``cols`` (Fortran-ordered, ``(N 2n, k)``) with ``K^-1 cols``.
@@ -562,7 +579,7 @@ class ReducedBorder:
             self._KEt = KEt.reshape(self.p, N, m)
         else:
             # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
-            self._KEt = np.empty((self.p, N, m))
+            self._KEt = scratch.take((self.p, N, m))
             self._E.write_transposed(self._KEt)
             if self.p:
                 fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
@@ -576,7 +593,9 @@ class ReducedBorder:
     def new_columns(self, k: int) -> np.ndarray:
         """A zeroed ``(k, N, 2n)`` array to write ``k`` right-hand sides in
         (column ``j`` is ``out[j]``), for :meth:`solve_columns`."""
-        return np.zeros((k, self.fac.N, 2 * self.fac.n))
+        out = scratch.take((k, self.fac.N, 2 * self.fac.n))
+        out.fill(0.0)
+        return out
 
     def solve_columns(self, cols: np.ndarray, c) -> np.ndarray:
         """Overwrite ``cols`` (from :meth:`new_columns`) with the states'
@@ -605,9 +624,7 @@ def solve_reduced(
     """
     p = D.shape[0]
     if p == 0:
-        z = fac.solve(b)
-        if rows is not None:
-            z = z[rows].copy()
+        z = fac.solve(b, rows)
         return ReducedSolution(z, np.zeros((0,) + b.shape[2:]), D, False)
     E = as_border(E)
     multi = b.ndim == 3
@@ -622,7 +639,9 @@ def solve_reduced(
     # k + p columns of the record beside it: at the peak of a study that
     # was 192 bytes per sample of two states).
     kept = fac.eliminated(E)
-    work = np.empty((k + (p if kept is None else 0), rows_all))
+    # on reused memory: a fresh array this size is a fresh mapping the
+    # kernel fills with zeroed huge pages at every Gauss-Newton step
+    work = scratch.take((k + (p if kept is None else 0), rows_all))
     work[:k] = bb.reshape(rows_all, k).T
     if kept is None:
         E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
