@@ -23,9 +23,9 @@ import numpy as np
 
 from ..core.blockwise import max_abs
 from ..exceptions import DivergenceError
-from . import scratch
 from .kkt import drop_kept_border
 from .records import SmootherResult
+from .scratch import release as release_scratch
 
 __all__ = ["GaussNewton"]
 
@@ -162,7 +162,7 @@ class GaussNewton:
                 break
         # the steps' scratch columns served this solve; idle, they would sit
         # beside whatever the caller does next (its statistics take their own)
-        scratch.release()
+        release_scratch()
         res = self._result(
             W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
         )

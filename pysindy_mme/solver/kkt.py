@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from . import scratch
+from .scratch import take as take_scratch
 
 __all__ = [
     "BandedKKT",
@@ -579,7 +579,7 @@ class ReducedBorder:
             self._KEt = KEt.reshape(self.p, N, m)
         else:
             # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
-            self._KEt = scratch.take((self.p, N, m))
+            self._KEt = take_scratch((self.p, N, m))
             self._E.write_transposed(self._KEt)
             if self.p:
                 fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
@@ -593,7 +593,7 @@ class ReducedBorder:
     def new_columns(self, k: int) -> np.ndarray:
         """A zeroed ``(k, N, 2n)`` array to write ``k`` right-hand sides in
         (column ``j`` is ``out[j]``), for :meth:`solve_columns`."""
-        out = scratch.take((k, self.fac.N, 2 * self.fac.n))
+        out = take_scratch((k, self.fac.N, 2 * self.fac.n))
         out.fill(0.0)
         return out
 
@@ -641,7 +641,7 @@ def solve_reduced(
     kept = fac.eliminated(E)
     # on reused memory: a fresh array this size is a fresh mapping the
     # kernel fills with zeroed huge pages at every Gauss-Newton step
-    work = scratch.take((k + (p if kept is None else 0), rows_all))
+    work = take_scratch((k + (p if kept is None else 0), rows_all))
     work[:k] = bb.reshape(rows_all, k).T
     if kept is None:
         E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
