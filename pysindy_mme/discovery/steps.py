@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import warnings
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -971,16 +972,51 @@ def _misfit_ratio(fit, check) -> float | None:
     return float(np.sqrt(max(check.cost - count, 0.0) / excess))
 
 
+#: the half-width refit of each fit still alive: ``id(fit) -> (weak
+#: reference to the fit, library, widths, RK4 steps, result)``. The study
+#: refits at half the width twice from the same fit when no term is dropped
+#: as a smoothing artefact (step 4 to find artefacts, the report to check
+#: the width): the second is the first's answer. (A fit compares by value,
+#: so it is no dictionary key; the entry goes when the fit does.)
+_HALF_WIDTH: dict = {}
+
+
 def _half_width_refit(engine, fit, library):
     """``(fit at half the smoothing width, smoothed columns)`` or None.
 
     With the RK4 steps doubled: a narrower kink is a stiffer one. From the
     fit's own trajectory and values; the library's widths are restored.
+    The same fit, library, widths and RK4 steps give the refit made before
+    (:data:`_HALF_WIDTH`).
     """
     widths = getattr(library, "widths_", None)
     if widths is None:
         return None
     widths = np.asarray(widths, dtype=float)
+    known = _HALF_WIDTH.get(id(fit))
+    if (
+        known is not None
+        and known[0]() is fit
+        and known[1] is library
+        and np.array_equal(known[2], widths)
+        and known[3] == engine.n_substeps
+    ):
+        return known[4]
+    half = _refit_at_half_width(engine, fit, library, widths)
+    if known is None:
+        weakref.finalize(fit, _HALF_WIDTH.pop, id(fit), None)
+    _HALF_WIDTH[id(fit)] = (
+        weakref.ref(fit),
+        library,
+        widths.copy(),
+        engine.n_substeps,
+        half,
+    )
+    return half
+
+
+def _refit_at_half_width(engine, fit, library, widths):
+    """:func:`_half_width_refit` without the memory of earlier refits."""
     # overflow terms of states are solved exactly, unsmoothed (core.relaxation)
     split = Overflows(
         fit.slots, overflow_columns_of(engine.features), engine.n_states

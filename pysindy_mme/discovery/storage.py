@@ -33,7 +33,8 @@ anything else. ``result`` has these parts:
     The :class:`~.result.Discovery`'s own fields: ``terms``,
     ``term_estimates``, ``verdict``, ``conclusion``, ``reasons``,
     ``advice``, ``warnings``, ``trade_offs``, ``smoothing``, ``memory``,
-    ``substeps``.
+    ``substeps``, ``kink_misfit`` (version 2; a version-1 file reads as
+    None).
 ``study``
     The checked study's data (:data:`STUDY_FIELDS`: records, names, noise,
     clipping, grey-box parameters and bounds, ...), ``input_hold``, the
@@ -105,7 +106,7 @@ __all__ = [
 ]
 
 FORMAT = "pysindy-mme discovery"
-VERSION = 1
+VERSION = 2
 
 #: the :class:`~.inputs.Study` attributes saved (data, not code)
 STUDY_FIELDS = (
@@ -347,6 +348,7 @@ def _result_dict(res) -> dict:
             "trade_offs": list(res.trade_offs),
             "smoothing": res.smoothing,
             "memory": list(res.memory),
+            "kink_misfit": res.kink_misfit,
         },
         "study": _study_dict(res.study),
         "mme": {

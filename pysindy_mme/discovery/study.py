@@ -336,6 +336,7 @@ def run_study(study, progress: Progress) -> Discovery:
         trade_offs=trade_offs,
         smoothing=smoothing,
         memory=memory,
+        kink_misfit=kink_misfit,
     )
 
 

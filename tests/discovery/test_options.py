@@ -42,7 +42,7 @@ OVER_TWELVE = {
     "MME": 17,
     "FloatingFStepwise": 19,
     # results records (dataclasses) the study builds, not users
-    "Discovery": 19,
+    "Discovery": 20,
     "NoiseDiagnostics": 14,
 }
 

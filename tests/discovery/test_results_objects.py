@@ -292,6 +292,24 @@ def test_a_newer_format_is_refused(saved, tmp_path):
         Discovery.load(tmp_path / "other.npz")
 
 
+def test_a_version_1_file_reads_without_the_kink_misfit(saved, tmp_path):
+    # version 2 added fields.kink_misfit; a file written before it loads with
+    # None there and everything else as saved
+    res, _, path = saved
+    assert res.kink_misfit is None  # no smoothed kinks in these studies
+    with np.load(path, allow_pickle=False) as data:
+        entries = {k: data[k] for k in data.files}
+    meta = json.loads(str(entries.pop("__meta__")))
+    assert "kink_misfit" in meta["result"]["fields"]
+    del meta["result"]["fields"]["kink_misfit"]
+    meta["version"] = 1
+    older = tmp_path / "older.npz"
+    np.savez(older, __meta__=np.array(json.dumps(meta)), **entries)
+    back = Discovery.load(older)
+    assert back.kink_misfit is None
+    assert str(back) == str(res)
+
+
 def test_loaded_result_names_what_was_not_saved(saved):
     res, back, _ = saved
     x0 = res.extended_simulation[0]
