@@ -301,12 +301,20 @@ def true_coefficients(system: System):
     return coef
 
 
-def make_problem(system: System, trajectories, t, level: float, seed: int):
-    """Library matrix, derivatives and true coefficients of one noisy record."""
+def make_problem(
+    system: System, trajectories, t, level: float, seed: int, units: float = 1.0
+):
+    """Library matrix, derivatives and true coefficients of one noisy record.
+
+    ``units``: the states measured in other units (every state times it; the
+    same noise draws, so the same record in other units). A polynomial
+    library keeps its support under a change of units (each monomial and its
+    coefficient scale), so the true pattern is the same.
+    """
     rng = np.random.default_rng([seed, int(level * 1e6)])
     thetas, dxs = [], []
     for x in trajectories:
-        y = x + level * x.std(axis=0) * rng.standard_normal(x.shape)
+        y = (x + level * x.std(axis=0) * rng.standard_normal(x.shape)) * units
         dxs.append(ps.SmoothedFiniteDifference()._differentiate(y, t))
         thetas.append(
             np.asarray(ps.PolynomialLibrary(system.degree).fit(y).transform(y))

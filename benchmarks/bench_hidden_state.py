@@ -430,11 +430,11 @@ NULL_CASES = [
     # missing effect is outside the library
     (
         "quadratic drag at 20 kHz, x2 |x2| outside the library (x1)",
-        _system_case(quadratic_drag, seconds=10.0, rate=20_000.0),
+        _system_case(quadratic_drag, seconds=20.0, rate=20_000.0),
     ),
     (
         "Duffing at 20 kHz, degree-2 library (x1)",
-        _system_case(duffing, degree=2, seconds=10.0, rate=20_000.0),
+        _system_case(duffing, degree=2, seconds=20.0, rate=20_000.0),
     ),
 ]
 
