@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas, lapack
 
+from .scratch import BufferPool
 from .scratch import take as take_scratch
 
 __all__ = [
@@ -62,7 +63,7 @@ __all__ = [
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
 
-# Band buffers of factors no longer alive (flat; at most _IDLE_MAX kept, the
+# Band buffers of factors no longer alive (flat; at most one kept, the
 # largest), for the next factorisation that fits in one. Any buffer at least
 # as large serves, whatever the shape it was made for: the refits of a
 # held-out stretch (a band of 0.8 N samples) reuse the whole record's band
@@ -70,10 +71,8 @@ CHUNK = 1 << 15
 # per sample of two states at that stage of a study, its peak). One idle
 # buffer only: after a stage where two factors lived at once (MME), a second
 # idle band would sit beside the one in use for the rest of the study.
-_IDLE: list = []
-_IDLE_MAX = 1
-# factors may die in any thread (studies run in threads by a scheduler)
-_IDLE_LOCK = threading.Lock()
+_BANDS = BufferPool(max_idle=1)
+_IDLE = _BANDS.idle  # (for tests)
 
 
 # One factor kept after its solve for the statistics that follow at the same
@@ -151,25 +150,12 @@ def _take_band(shape) -> np.ndarray:
     """
     size = int(np.prod(shape))
     drop_kept_factor()  # its band serves the new factor
-    with _IDLE_LOCK:
-        fits = [k for k, b in enumerate(_IDLE) if b.size >= size]
-        if fits:
-            flat = _IDLE.pop(min(fits, key=lambda k: _IDLE[k].size))
-        else:
-            _IDLE.clear()
-            flat = None
-    if flat is None:
-        flat = np.empty(size)
-    return flat[:size].reshape(shape)
+    return _BANDS.take(size)[:size].reshape(shape)
 
 
 def _give_back(band) -> None:
     """Keep the (whole) buffer of a dead factor for the next factorisation."""
-    flat = band if band.base is None else band.base
-    with _IDLE_LOCK:
-        _IDLE.append(flat)
-        while len(_IDLE) > _IDLE_MAX:  # the largest stay: they serve any size
-            del _IDLE[min(range(len(_IDLE)), key=lambda k: _IDLE[k].size)]
+    _BANDS.give_back(band if band.base is None else band.base)
 
 
 @dataclass
