@@ -25,7 +25,6 @@ from ..core.blockwise import max_abs
 from ..exceptions import DivergenceError
 from .kkt import drop_kept_border
 from .records import SmootherResult
-from .scratch import release as release_scratch
 
 __all__ = ["GaussNewton"]
 
@@ -160,9 +159,6 @@ class GaussNewton:
                 converged = True
                 message = "converged (linear problem, exact step)"
                 break
-        # the steps' scratch columns served this solve; idle, they would sit
-        # beside whatever the caller does next (its statistics take their own)
-        release_scratch()
         res = self._result(
             W, x, d, theta, lam, lin, logdet, converged, n_iter, message, deficient
         )

@@ -41,8 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from .scratch import BufferPool
-from .scratch import take as take_scratch
+from .buffers import BufferPool
 
 __all__ = [
     "BandedKKT",
@@ -565,7 +564,7 @@ class ReducedBorder:
             self._KEt = KEt.reshape(self.p, N, m)
         else:
             # K^-1 E as (p, N, 2n) C-ordered: the Fortran columns LAPACK solves
-            self._KEt = take_scratch((self.p, N, m))
+            self._KEt = np.empty((self.p, N, m))
             self._E.write_transposed(self._KEt)
             if self.p:
                 fac.solve_in_place(self._KEt.reshape(self.p, -1).T)
@@ -579,9 +578,7 @@ class ReducedBorder:
     def new_columns(self, k: int) -> np.ndarray:
         """A zeroed ``(k, N, 2n)`` array to write ``k`` right-hand sides in
         (column ``j`` is ``out[j]``), for :meth:`solve_columns`."""
-        out = take_scratch((k, self.fac.N, 2 * self.fac.n))
-        out.fill(0.0)
-        return out
+        return np.zeros((k, self.fac.N, 2 * self.fac.n))
 
     def solve_columns(self, cols: np.ndarray, c) -> np.ndarray:
         """Overwrite ``cols`` (from :meth:`new_columns`) with the states'
@@ -625,9 +622,7 @@ def solve_reduced(
     # k + p columns of the record beside it: at the peak of a study that
     # was 192 bytes per sample of two states).
     kept = fac.eliminated(E)
-    # on reused memory: a fresh array this size is a fresh mapping the
-    # kernel fills with zeroed huge pages at every Gauss-Newton step
-    work = take_scratch((k + (p if kept is None else 0), rows_all))
+    work = np.empty((k + (p if kept is None else 0), rows_all))
     work[:k] = bb.reshape(rows_all, k).T
     if kept is None:
         E.write_transposed(work[k:].reshape(p, fac.N, 2 * fac.n))
