@@ -41,8 +41,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from .buffers import BufferPool
-
 __all__ = [
     "BandedKKT",
     "Border",
@@ -62,7 +60,7 @@ __all__ = [
 # Intervals assembled per block: bounded temporaries stay in cache.
 CHUNK = 1 << 15
 
-# Band buffers of factors no longer alive (flat; at most one kept, the
+# Band buffers of factors no longer alive (flat; at most _IDLE_MAX kept, the
 # largest), for the next factorisation that fits in one. Any buffer at least
 # as large serves, whatever the shape it was made for: the refits of a
 # held-out stretch (a band of 0.8 N samples) reuse the whole record's band
@@ -70,8 +68,10 @@ CHUNK = 1 << 15
 # per sample of two states at that stage of a study, its peak). One idle
 # buffer only: after a stage where two factors lived at once (MME), a second
 # idle band would sit beside the one in use for the rest of the study.
-_BANDS = BufferPool(max_idle=1)
-_IDLE = _BANDS.idle  # (for tests)
+_IDLE: list = []
+_IDLE_MAX = 1
+# factors may die in any thread (studies run in threads by a scheduler)
+_IDLE_LOCK = threading.Lock()
 
 
 # One factor kept after its solve for the statistics that follow at the same
@@ -149,12 +149,25 @@ def _take_band(shape) -> np.ndarray:
     """
     size = int(np.prod(shape))
     drop_kept_factor()  # its band serves the new factor
-    return _BANDS.take(size)[:size].reshape(shape)
+    with _IDLE_LOCK:
+        fits = [k for k, b in enumerate(_IDLE) if b.size >= size]
+        if fits:
+            flat = _IDLE.pop(min(fits, key=lambda k: _IDLE[k].size))
+        else:
+            _IDLE.clear()
+            flat = None
+    if flat is None:
+        flat = np.empty(size)
+    return flat[:size].reshape(shape)
 
 
 def _give_back(band) -> None:
     """Keep the (whole) buffer of a dead factor for the next factorisation."""
-    _BANDS.give_back(band if band.base is None else band.base)
+    flat = band if band.base is None else band.base
+    with _IDLE_LOCK:
+        _IDLE.append(flat)
+        while len(_IDLE) > _IDLE_MAX:  # the largest stay: they serve any size
+            del _IDLE[min(range(len(_IDLE)), key=lambda k: _IDLE[k].size)]
 
 
 @dataclass
@@ -226,20 +239,17 @@ class KKTFactor:
         of ``n`` solutions: not a copy of ``n`` columns of the record).
         """
         shape = rhs.shape
-        m = self.N * 2 * self.n
-        flat = np.reshape(rhs, (m, -1))
-        # the columns, Fortran-ordered (the caller's array stays as it was):
-        # LAPACK solves them where they lie
-        work = np.array(flat.T, order="C")
-        self.solve_in_place(work.T)
-        if rows is None:
-            return np.ascontiguousarray(work.T).reshape(shape)
-        per = 2 * self.n
-        sl = range(self.N)[rows]
-        if sl.step != 1:  # pragma: no cover - a bug, not a user error
-            raise ValueError("rows must be a contiguous slice")
-        part = work[:, sl.start * per : sl.stop * per]
-        return np.ascontiguousarray(part.T).reshape((len(sl),) + shape[1:])
+        # a Fortran-ordered copy (the caller's array stays as it was)
+        cols = np.array(np.reshape(rhs, (self.N * 2 * self.n, -1)), order="F")
+        sol = self.solve_in_place(cols)
+        if rows is not None:
+            sl = range(self.N)[rows]
+            if sl.step != 1:  # pragma: no cover - a bug, not a user error
+                raise ValueError("rows must be a contiguous slice")
+            per = 2 * self.n
+            sol = sol[sl.start * per : sl.stop * per]
+            shape = (len(sl),) + shape[1:]
+        return np.ascontiguousarray(sol).reshape(shape)
 
     def solve_in_place(self, cols: np.ndarray) -> np.ndarray:
         """Overwrite ``cols`` (Fortran-ordered, ``(N 2n, k)``) with ``K^-1 cols``.
@@ -622,6 +632,11 @@ def solve_reduced(
     # k + p columns of the record beside it: at the peak of a study that
     # was 192 bytes per sample of two states).
     kept = fac.eliminated(E)
+    # A fresh array per call, not pooled as the band is: at 10^6 samples its
+    # fresh pages cost 0.7-1.1 s of a study's system time, but kept idle
+    # between solves it raised the study's peak over 1.5 kB per sample, and
+    # pooled within a solve or on 4 kB pages it saved nothing measurable
+    # (sessions 22 and 26, README)
     work = np.empty((k + (p if kept is None else 0), rows_all))
     work[:k] = bb.reshape(rows_all, k).T
     if kept is None:

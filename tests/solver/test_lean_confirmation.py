@@ -261,6 +261,21 @@ def test_the_reduced_solve_against_the_dense_bordered_system(k):
     np.testing.assert_allclose(dtheta, ref[-p:], atol=1e-10)
 
 
+def test_a_factors_solve_of_a_few_rows_against_the_dense_system():
+    # no border (p = 0): all samples, and only some (the initial state's
+    # covariance needs sample 0 only, not a copy of the record's columns)
+    N, n = 40, 2
+    Q, A = _blocks(N, n, 9)
+    b = np.random.default_rng(10).standard_normal((N, 2 * n, n))
+    ref = np.linalg.solve(_dense_kkt(Q, A), b.reshape(N * 2 * n, n)).reshape(b.shape)
+    fac = BandedKKT(N, n).factor(Q, A, None)
+    np.testing.assert_allclose(fac.solve(b), ref, atol=1e-10)
+    np.testing.assert_allclose(fac.solve(b, rows=slice(3, 7)), ref[3:7], atol=1e-10)
+    part = kkt.solve_reduced(fac, None, np.zeros((0, 0)), b, None, rows=slice(0, 1))
+    assert part.z.shape == (1, 2 * n, n)
+    np.testing.assert_allclose(part.z, ref[:1], atol=1e-10)
+
+
 def test_the_reduced_solve_keeps_no_copy_of_the_solved_columns():
     # solve_reduced solves [b, E] in one Fortran-ordered array of (k + p)
     # columns of the record and reads the answer where it lies: its peak
