@@ -24,7 +24,8 @@ Claims checked in the report text:
 Numbers: the in-sample and out-of-sample RMSE of both models equal, within
 1 %, a free run written here (classical RK4 with the study's number of steps
 per sample interval, inputs interpolated here) of the model that was
-reported, from the reported initial state. Runs longer than
+reported, from the reported initial state; an in-sample run the report
+names as set by rounding is exempt (no other run need match it). Runs longer than
 ``MAX_AUDIT_STEPS`` RK4 steps are audited on the report only (a Python loop
 per step: ``audited_runs`` counts both kinds, printed in the summary).
 """
@@ -203,6 +204,15 @@ def audit_numbers(res) -> None:
         ("extended", gain.rmse_extended),
     ):
         run = gain.in_sample_runs[name]
+        if any(
+            note.startswith(f"the {name} model's free run is set by rounding")
+            for note in res.warnings
+        ):
+            # the report says this RMSE is one run among many within
+            # rounding: another RK4 run from the same state need not match it
+            # (tests/discovery/test_rounding_set_runs.py checks the claim)
+            audited_runs["named as set by rounding (RMSE not comparable)"] += 1
+            continue
         if study.t.size * res.substeps > MAX_AUDIT_STEPS:
             audited_runs["report only (too long to integrate in Python)"] += 1
             continue

@@ -36,9 +36,11 @@ from .jacobian import column_scale, rowwise_jacobian
 from .relaxation import split_form
 
 __all__ = [
+    "GUIDED_TOL",
     "RK4_H_RHO",
     "InputSignal",
     "FlowResult",
+    "perturbation_growth",
     "rk4_flow",
     "simulate",
     "simulate_guided",
@@ -494,6 +496,40 @@ def solve_recursion(A, forcing):
     return z.reshape(forcing.shape), info
 
 
+def perturbation_growth(A) -> np.ndarray:
+    """How far a change of the initial state travels along a trajectory.
+
+    For the interval maps' Jacobians ``A (K, n, n)`` (``A_k = dPhi_k/dx``),
+    ``g (K + 1,)`` with ``g[k]`` the largest entry, in absolute value, of
+    ``A_{k-1} ... A_0`` (``g[0] = 1``): a unit change of one state at the
+    start moves no state at sample ``k`` by more than ``n g[k]``. One banded
+    solve (:func:`solve_recursion`) with the ``n`` columns of ``A_0`` as
+    forcing. Where the product overflows, and from there on, ``inf``.
+    """
+    A = np.asarray(A, dtype=float)
+    K, n = A.shape[:2]
+    out = np.full(K + 1, np.inf)
+    out[0] = 1.0
+    if K == 0:
+        return out
+    forcing = np.zeros((K, n, n))
+    forcing[0] = A[0]
+    with np.errstate(all="ignore"):
+        z, info = solve_recursion(A, forcing)
+        size = np.max(np.abs(z.reshape(K, -1)), axis=1)
+    bad = ~np.isfinite(size)
+    if info != 0:
+        bad[:] = True
+    first = int(np.argmax(bad)) if bad.any() else K
+    out[1 : first + 1] = size[:first]
+    return out
+
+
+#: a guided free run's Newton iteration stops when every interval's defect is
+#: at most this fraction of the trajectory's scale: its trajectory is the
+#: model's run to this precision, not to rounding
+GUIDED_TOL = 1e-12
+
 #: a guided free run solves its Newton iteration over blocks of intervals,
 #: each from the exact end state of the block before: over a long record the
 #: linearised recursion can amplify the guess's small defects (a limit cycle's
@@ -596,12 +632,12 @@ def simulate_guided(
     if not np.all(np.isfinite(x[0])) or N < 2:
         return simulate(rhs_rows, x0, t, inputs, substeps, bound=bound, split=split)
     block = _NewtonBlock(rhs, x, t, inputs, substeps, jac_x, split)
-    if block.is_the_run(1e-12 * scale, bound):
+    if block.is_the_run(GUIDED_TOL * scale, bound):
         return SimulationResult(x[None], np.array([-1]))
     start, size, stretch = 0, N - 1, GUIDED_MIN_BLOCK
     while start < N - 1:
         stop = min(start + size, N - 1)
-        if block.solve(start, stop, 1e-12 * scale, bound, max_iter):
+        if block.solve(start, stop, GUIDED_TOL * scale, bound, max_iter):
             start, size, stretch = stop, 2 * size, GUIDED_MIN_BLOCK
             continue
         x[start + 1 : stop + 1] = guess[start + 1 : stop + 1]

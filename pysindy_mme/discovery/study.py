@@ -32,6 +32,7 @@ from .memory import discount_estimation_error
 from .options import as_options, refuse_moved
 from .propose import propose_terms
 from .result import Discovery
+from .run_sensitivity import rounding_note, rounding_sets_run
 from .steps import (
     baseline,
     confirm_on_measurements,
@@ -264,9 +265,19 @@ def run_study(study, progress: Progress) -> Discovery:
     # statistics are computed now and their linearisations released (two
     # fits' flows and sensitivities, a quarter of the gain stage's peak
     # at 10^6 samples, held while its free runs and refits build their own)
+    # read from the fits' linearisations, released next
+    rounding = {
+        name: rounding_sets_run(fit, study.t, study.record_slices)
+        for name, fit in fits.items()
+        if name == "assumed" or fit is not fits["assumed"]
+    }
     for fit in fits.values():
         fit.keep_statistics()
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
+    for name, where in rounding.items():
+        if where is not None:
+            rmse = gain.in_sample_runs[name].rmse
+            gain.notes.append(rounding_note(name, where, rmse))
     if study.validation is None and confirmation.slots:
         hold_out(
             study,
