@@ -275,8 +275,9 @@ def run_study(study, progress: Progress) -> Discovery:
         fit.keep_statistics()
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
     for name, where in rounding.items():
-        if where is not None:
-            rmse = gain.in_sample_runs[name].rmse
+        rmse = np.asarray(gain.in_sample_runs[name].rmse, dtype=float)
+        # a run that diverged is reported as such (RMSE inf) already
+        if where is not None and np.all(np.isfinite(rmse)):
             gain.notes.append(rounding_note(name, where, rmse))
     if study.validation is None and confirmation.slots:
         hold_out(

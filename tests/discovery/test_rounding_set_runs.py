@@ -113,6 +113,33 @@ def test_an_unstable_assumed_model_over_a_long_record_is_named():
     assert np.max(apart[t < when]) <= ROUNDING_SHARE * sd
 
 
+def test_held_out_an_unstable_linear_model_is_named_and_its_fix_is_not():
+    # not looked at while the rule was set: a decay the model has as growth
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 80.0, 1601)
+    y = (4.0 * np.exp(-0.5 * t) + 1.0 + 0.05 * rng.standard_normal(t.size))[:, None]
+
+    def assumed(x, t):
+        return 0.5 * (x - 1.0)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = discover(
+            y,
+            t,
+            assumed_model=assumed,
+            n_states=1,
+            measured=[0],
+            noise_variance=0.0025,
+            error_states=[0],
+            feature_library=ps.PolynomialLibrary(degree=1),
+            options=StudyOptions(feature_names=["x"]),
+        )
+    notes = _rounding_notes(res)
+    assert [n.split(" free run")[0] for n in notes] == ["the assumed model's"]
+    assert res.terms["x"], "the decay must be found"
+
+
 @pytest.mark.parametrize("t_end", [15.0])
 def test_a_stable_run_gets_no_such_note(t_end):
     _, _, res = _lotka_volterra_study(t_end)
