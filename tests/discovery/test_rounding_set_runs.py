@@ -21,9 +21,11 @@ from pysindy_mme.discovery.run_sensitivity import ROUNDING_SHARE
 from pysindy_mme.systems import lotka_volterra, van_der_pol
 
 
-def test_growth_is_the_largest_entry_of_the_products():
+@pytest.mark.parametrize("K", [1, 2, 60, 64, 1001])
+def test_growth_is_the_largest_entry_of_the_products(K):
+    # blocks of ceil(sqrt(K)) intervals: a last block short or full
     rng = np.random.default_rng(3)
-    A = np.eye(3) + 0.3 * rng.standard_normal((60, 3, 3))
+    A = np.eye(3) + 0.3 * rng.standard_normal((K, 3, 3))
     expected = [1.0]
     P = np.eye(3)
     for Ak in A:
