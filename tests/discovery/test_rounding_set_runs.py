@@ -15,7 +15,7 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import StudyOptions, discover
+from pysindy_mme import Record, StudyOptions, discover
 from pysindy_mme.core.integrate import GUIDED_TOL, perturbation_growth
 from pysindy_mme.discovery.run_sensitivity import ROUNDING_SHARE
 from pysindy_mme.systems import lotka_volterra, van_der_pol
@@ -140,6 +140,31 @@ def test_held_out_an_unstable_linear_model_is_named_and_its_fix_is_not():
     notes = _rounding_notes(res)
     assert [n.split(" free run")[0] for n in notes] == ["the assumed model's"]
     assert res.terms["x"], "the decay must be found"
+
+
+def test_with_several_records_each_run_is_read_from_its_own_start():
+    # 75 s cut in two records: the first (15 s) is too short for the growth
+    # to matter, the second restarts from its own fitted state and is not
+    system = lotka_volterra()
+    t = system.time(75.0, 20.0)
+    data = system.measure(0, t=t)
+    k = 301  # t = 15
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = discover(
+            [Record(data.y[:k], t[:k]), Record(data.y[k:], t[k:])],
+            assumed_model=system.assumed_model,
+            n_states=2,
+            measured=[0, 1],
+            noise_variance=0.01,
+            error_states=[1],
+            feature_library=ps.PolynomialLibrary(degree=2),
+            options=StudyOptions(feature_names=["x1", "x2"]),
+        )
+    notes = _rounding_notes(res)
+    assert len(notes) == 1, res.warnings
+    when = float(notes[0].split("from t = ")[1].split(" on")[0])
+    assert when > t[k]
 
 
 @pytest.mark.parametrize("t_end", [15.0])
