@@ -64,6 +64,10 @@ class Gain:
     #: how the models were run and scored out of sample (the protocol's
     #: sentence, :mod:`pysindy_mme.protocols`)
     validation_method: str | None = None
+    #: ``{model: time}`` for each model whose in-sample run is set by
+    #: rounding from that time on (:mod:`.run_sensitivity`): its RMSE and a
+    #: gain over it are one run's among many, not the model's
+    rounding_set: dict = field(default_factory=dict)
 
     @property
     def ratio(self) -> np.ndarray:
@@ -88,6 +92,7 @@ class Gain:
             "in_sample": True,
             "free_run": True,
             "converged": dict(self.converged),
+            "rounding_set": {k: float(v) for k, v in self.rounding_set.items()},
         }
         if self.validation_rmse_assumed is not None:
             out["validation_rmse_assumed"] = plain(self.validation_rmse_assumed)

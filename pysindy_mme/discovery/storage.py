@@ -58,7 +58,8 @@ anything else. ``result`` has these parts:
     summary as the report showed it (text and HTML) and its step history.
 ``gain``
     Step 5: the :class:`~.gain.Gain` with its free runs (without the models
-    that ran).
+    that ran); its ``rounding_set`` since version 3 (a file of version 1 or
+    2 reads with none).
 ``extended_model``
     Coefficients, intercept, ``substeps``, the assumed equations' text and
     the grey-box parameter values it runs with.
@@ -106,7 +107,7 @@ __all__ = [
 ]
 
 FORMAT = "pysindy-mme discovery"
-VERSION = 2
+VERSION = 3
 
 #: the :class:`~.inputs.Study` attributes saved (data, not code)
 STUDY_FIELDS = (

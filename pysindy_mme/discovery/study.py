@@ -278,6 +278,7 @@ def run_study(study, progress: Progress) -> Discovery:
         rmse = np.asarray(gain.in_sample_runs[name].rmse, dtype=float)
         # a run that diverged is reported as such (RMSE inf) already
         if where is not None and np.all(np.isfinite(rmse)):
+            gain.rounding_set[name] = where.time
             gain.notes.append(rounding_note(name, where, rmse))
     if study.validation is None and confirmation.slots:
         hold_out(

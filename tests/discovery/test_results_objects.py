@@ -310,6 +310,22 @@ def test_a_version_1_file_reads_without_the_kink_misfit(saved, tmp_path):
     assert str(back) == str(res)
 
 
+def test_a_version_2_file_reads_with_no_run_set_by_rounding(saved, tmp_path):
+    # version 3 added gain.rounding_set (tests/discovery/test_rounding_set_runs.py)
+    res, _, path = saved
+    with np.load(path, allow_pickle=False) as data:
+        entries = {k: data[k] for k in data.files}
+    meta = json.loads(str(entries.pop("__meta__")))
+    gain = meta["result"]["gain"]["fields"]
+    assert gain.pop("rounding_set") == {}
+    meta["version"] = 2
+    older = tmp_path / "older.npz"
+    np.savez(older, __meta__=np.array(json.dumps(meta)), **entries)
+    back = Discovery.load(older)
+    assert back.gain.rounding_set == {}
+    assert str(back) == str(res)
+
+
 def test_loaded_result_names_what_was_not_saved(saved):
     res, back, _ = saved
     x0 = res.extended_simulation[0]

@@ -15,7 +15,7 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from pysindy_mme import Record, StudyOptions, discover
+from pysindy_mme import Discovery, Record, StudyOptions, discover
 from pysindy_mme.core.integrate import GUIDED_TOL, perturbation_growth
 from pysindy_mme.discovery.run_sensitivity import ROUNDING_SHARE
 from pysindy_mme.systems import lotka_volterra, van_der_pol
@@ -113,6 +113,18 @@ def test_an_unstable_assumed_model_over_a_long_record_is_named():
     assert np.nanmax(apart[t > when + 10.0]) > ROUNDING_SHARE * sd
     # the note's bound: the change is amplified by at most the growth there
     assert np.max(apart[t < when]) <= ROUNDING_SHARE * sd
+
+
+def test_the_report_marks_the_run_and_a_saved_result_keeps_it(tmp_path):
+    _, _, res = _lotka_volterra_study(75.0)
+    assert set(res.gain.rounding_set) == {"assumed"}
+    line = [s for s in str(res).splitlines() if s.startswith("SET BY ROUNDING")]
+    assert len(line) == 1 and "the assumed model's in-sample run" in line[0]
+    res.save(tmp_path / "lv")
+    back = Discovery.load(tmp_path / "lv")
+    assert back.gain.rounding_set == res.gain.rounding_set
+    assert str(back) == str(res)
+    assert back.gain.to_dict()["rounding_set"] == res.gain.rounding_set
 
 
 def test_held_out_an_unstable_linear_model_is_named_and_its_fix_is_not():
