@@ -7,8 +7,8 @@ predator's gain over 75 s: prey growing as e^t once the predators have died
 out, a factor of 1e32). Its run is then set by the last digits it is solved
 to, not by the model: the study's Newton-solved run (every interval joined to
 :data:`~pysindy_mme.core.integrate.GUIDED_TOL` of the trajectory's scale)
-stays at ``x1 = 0`` from ``x1(0) = -9e-15`` and scores an RMSE of 2.27, where
-an independent RK4 run from the same state ends at 1e16. Both are runs of the
+stays at ``x1 = 0`` from ``x1(0) = -9e-15`` and scores an RMSE of 2.26, where
+an independent RK4 run from the same state scores 6e14. Both are runs of the
 model within rounding, and neither RMSE measures the model.
 
 :func:`rounding_sets_run` reads the fit's last linearisation (its interval
