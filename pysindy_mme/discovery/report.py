@@ -422,7 +422,7 @@ def _gain(res) -> list:
             f"NOT CONVERGED: the fit of the {' and the '.join(unconverged)} model "
             "did not converge; its numbers are a free run of an unsettled fit."
         )
-    for name, when in getattr(g, "rounding_set", {}).items():
+    for name, when in g.rounding_set.items():
         out.append(
             f"SET BY ROUNDING: the {name} model's in-sample run from t = {when:.6g} "
             "on (see the notes); its RMSE and the gain over it are one run's among "

@@ -261,16 +261,17 @@ def run_study(study, progress: Progress) -> Discovery:
             engine, confirmation.fit, _term_names(study, proposals, confirmation.slots)
         )
     )
-    # From here on the fits are read, not tested or resumed: their
-    # statistics are computed now and their linearisations released (two
-    # fits' flows and sensitivities, a quarter of the gain stage's peak
-    # at 10^6 samples, held while its free runs and refits build their own)
-    # read from the fits' linearisations, released next
+    # where rounding sets each model's free run: read from the fits'
+    # linearisations (the same object twice when no term was kept)
     rounding = {
         name: rounding_sets_run(fit, study.t, study.record_slices)
         for name, fit in fits.items()
         if name == "assumed" or fit is not fits["assumed"]
     }
+    # From here on the fits are read, not tested or resumed: their
+    # statistics are computed now and their linearisations released (two
+    # fits' flows and sensitivities, a quarter of the gain stage's peak
+    # at 10^6 samples, held while its free runs and refits build their own)
     for fit in fits.values():
         fit.keep_statistics()
     gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5

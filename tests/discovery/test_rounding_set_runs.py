@@ -52,15 +52,20 @@ def test_growth_beyond_floating_point_is_inf_from_there_on():
     assert np.all(np.isfinite(g[:31])) and np.all(np.isinf(g[31:]))
 
 
-def _lotka_volterra_study(t_end):
+def _lotka_volterra_study(t_end, cut=None):
+    """The study of one record, or of two records cut at sample ``cut``."""
     system = lotka_volterra()
     t = system.time(t_end, 20.0)
     data = system.measure(0, t=t)
+    records = (
+        (data.y, t)
+        if cut is None
+        else ([Record(data.y[:cut], t[:cut]), Record(data.y[cut:], t[cut:])], None)
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = discover(
-            data.y,
-            t,
+            *records,
             assumed_model=system.assumed_model,
             n_states=2,
             measured=[0, 1],
@@ -74,6 +79,11 @@ def _lotka_volterra_study(t_end):
 
 def _rounding_notes(res):
     return [n for n in res.warnings if "set by rounding" in n]
+
+
+def _named_time(note) -> float:
+    """The time a rounding note says the run is set from."""
+    return float(note.split("from t = ")[1].split(" on")[0])
 
 
 def _rk4_run(f, x0, t):
@@ -98,7 +108,7 @@ def test_an_unstable_assumed_model_over_a_long_record_is_named():
     notes = _rounding_notes(res)
     assert len(notes) == 1, res.warnings
     assert notes[0].startswith("the assumed model's free run")
-    when = float(notes[0].split("from t = ")[1].split(" on")[0])
+    when = _named_time(notes[0])
     assert 5.0 < when < 70.0
     # the claim itself: from a change of the initial state at the run's
     # precision, an independent RK4 run leaves the reported one by more
@@ -157,31 +167,15 @@ def test_held_out_an_unstable_linear_model_is_named_and_its_fix_is_not():
 def test_with_several_records_each_run_is_read_from_its_own_start():
     # 75 s cut in two records: the first (15 s) is too short for the growth
     # to matter, the second restarts from its own fitted state and is not
-    system = lotka_volterra()
-    t = system.time(75.0, 20.0)
-    data = system.measure(0, t=t)
     k = 301  # t = 15
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = discover(
-            [Record(data.y[:k], t[:k]), Record(data.y[k:], t[k:])],
-            assumed_model=system.assumed_model,
-            n_states=2,
-            measured=[0, 1],
-            noise_variance=0.01,
-            error_states=[1],
-            feature_library=ps.PolynomialLibrary(degree=2),
-            options=StudyOptions(feature_names=["x1", "x2"]),
-        )
+    _, t, res = _lotka_volterra_study(75.0, cut=k)
     notes = _rounding_notes(res)
     assert len(notes) == 1, res.warnings
-    when = float(notes[0].split("from t = ")[1].split(" on")[0])
-    assert when > t[k]
+    assert _named_time(notes[0]) > t[k]
 
 
-@pytest.mark.parametrize("t_end", [15.0])
-def test_a_stable_run_gets_no_such_note(t_end):
-    _, _, res = _lotka_volterra_study(t_end)
+def test_a_stable_run_gets_no_such_note():
+    _, _, res = _lotka_volterra_study(15.0)
     assert _rounding_notes(res) == []
 
 
