@@ -42,6 +42,7 @@ __all__ = [
     "FlowResult",
     "perturbation_growth",
     "rk4_flow",
+    "run_jacobians",
     "simulate",
     "simulate_guided",
     "solve_recursion",
@@ -647,20 +648,8 @@ def simulate_guided(
     inputs = inputs if inputs is not None else InputSignal(None, t)
     scale = max(1.0, float(np.max(np.abs(x))))
     bound = 1e8 * scale if bound is None else bound
-    # An extended model (it offers a split form) without its checks, the
-    # same values: the Newton iteration calls it at every RK4 stage of every
-    # pass. (Not any model's ``unchecked``: a user's bare function may give
-    # a one-state answer as a row, which only the checked call reshapes.)
-    own_jacobian = None
-    if callable(getattr(rhs, "split_form", None)) and callable(
-        getattr(rhs, "unchecked", None)
-    ):
-        rhs = rhs.unchecked()
-        own_jacobian = getattr(rhs, "jacobian", None)
-    # a model's overflow terms, solved exactly around each RK4 step
-    rhs, split = split_form(rhs)
-    if jac_x is None:
-        jac_x = _difference_jacobian(rhs, guess, own_jacobian)
+    rhs, split, own_jac = _run_form(rhs, guess)
+    jac_x = own_jac if jac_x is None else jac_x
 
     def rhs_rows(X, s, u):
         uu = None if u is None else np.broadcast_to(u, (X.shape[0], u.shape[-1]))
@@ -700,6 +689,52 @@ def simulate_guided(
         start, stretch = stop, 2 * stretch
         size = GUIDED_MIN_BLOCK * GUIDED_SHRINK
     return SimulationResult(x[None], np.array([-1]))
+
+
+def _run_form(rhs, guess):
+    """``(rhs, split, jac_x)``: a model as the guided run integrates it.
+
+    An extended model (it offers a split form) without its checks, the same
+    values: a run calls it at every RK4 stage of every pass. (Not any
+    model's ``unchecked``: a user's bare function may give a one-state
+    answer as a row, which only the checked call reshapes.) Its overflow
+    terms are split off (solved exactly around each RK4 step), and ``jac_x``
+    is the model's own Jacobian or central differences scaled by ``guess``
+    (:func:`_difference_jacobian`).
+    """
+    own_jacobian = None
+    if callable(getattr(rhs, "split_form", None)) and callable(
+        getattr(rhs, "unchecked", None)
+    ):
+        rhs = rhs.unchecked()
+        own_jacobian = getattr(rhs, "jacobian", None)
+    rhs, split = split_form(rhs)
+    return rhs, split, _difference_jacobian(rhs, guess, own_jacobian)
+
+
+def run_jacobians(rhs, x, t, inputs: InputSignal | None, substeps: int):
+    """``A (N - 1, n, n)``: the RK4 interval maps' ``dPhi_k/dx`` along a run.
+
+    ``x (N, n)``: the run (a :func:`simulate_guided` result, finite); the
+    model as :func:`simulate_guided` integrates it, all intervals in one
+    vectorised pass.
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    inputs = inputs if inputs is not None else InputSignal(None, t)
+    rhs, split, jac_x = _run_form(rhs, x)
+    with np.errstate(all="ignore"):
+        out = rk4_flow(
+            rhs,
+            x[:-1],
+            t[:-1],
+            np.diff(t),
+            lambda frac: inputs.on_intervals(frac),
+            substeps,
+            jac_x=jac_x,
+            split=split,
+        )
+    return out.D
 
 
 def _difference_jacobian(rhs, guess, own=None):

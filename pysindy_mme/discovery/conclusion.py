@@ -220,6 +220,10 @@ class Evidence:
         Out-of-sample free runs; ``out_source`` says on what.
     out_converged : bool
         The refits the out-of-sample runs come from converged.
+    out_spread : str or None
+        Where the extended model's out-of-sample run stops being determined
+        by its initial state's estimate (:mod:`~pysindy_mme.protocols.spread`),
+        as a sentence; None: determined throughout.
     unidentified : list of str
         Sentences naming undetermined quantities.
     parameters : list of str
@@ -259,6 +263,7 @@ class Evidence:
     out_extended: np.ndarray | None = None
     out_source: str | None = None
     out_converged: bool = True
+    out_spread: str | None = None
     unidentified: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
     parameter_advice: str | None = None
@@ -421,7 +426,14 @@ def _with_terms(ev: Evidence) -> Conclusion:
         advice.append(_TRY["validation"])
     else:
         gain, worst, text = held
-        if gain < 1.0 / HELD_OUT_MARGIN or worst < 1.0 / HELD_OUT_MARGIN:
+        worse = gain < 1.0 / HELD_OUT_MARGIN or worst < 1.0 / HELD_OUT_MARGIN
+        if ev.out_spread and (worse or gain < HELD_OUT_MARGIN):
+            # A run its start's estimate spreads by more than the noise
+            # misses the data even for a perfect model: neither "worse" nor
+            # "too small a gain" is then the model's
+            blockers.append(f"on {text}; but {ev.out_spread}")
+            advice.append(_TRY["spread"])
+        elif worse:
             reasons = [f"with {terms} the model is worse on {text}"] + blockers
             verdict = (
                 "the data contradict the assumed model; the terms found do not "
@@ -430,7 +442,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
             return Conclusion(
                 "not explained", verdict, tuple(reasons), tuple(advice + [_TRY["look"]])
             )
-        if gain < HELD_OUT_MARGIN:
+        elif gain < HELD_OUT_MARGIN:
             blockers.append(
                 f"on {text}: less than the {HELD_OUT_MARGIN}x an explanation needs"
             )
@@ -442,7 +454,14 @@ def _with_terms(ev: Evidence) -> Conclusion:
             [f"the study kept {terms}, but {blockers[0]}"] + blockers[1:], advice
         )
     fit_text = _fit_text(ev)
-    gain_text = f"held-out gain {sig(held[0], 3)}x on {ev.out_source}"
+    gain_text = (
+        f"held-out gain {sig(held[0], 3)}x on {ev.out_source}"
+        if np.isfinite(held[0])
+        else f"on {ev.out_source} only the assumed model's free run diverges"
+    )
+    # why the extended model's held-out run misses the data by more than its
+    # fit would suggest, where its start's estimate spreads it
+    spread = (f"{ev.out_spread}",) if ev.out_spread else ()
     if np.all(ev.rmse_extended <= FIT_FACTOR * ev.noise_floor):
         verdict = (
             "the data contradict the assumed model; the identified terms explain "
@@ -450,6 +469,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
         )
         reasons = (
             f"{held[2]}",
+            *spread,
             f"the extended model fits its record {fit_text} (at most {FIT_FACTOR}x)",
             "every refit converged, and no kept term or parameter is unidentified",
         )
@@ -582,6 +602,12 @@ _TRY = {
         "spans the validation record's amplitudes"
     ),
     "rest": "more library functions, or a hidden state (the effect may have memory)",
+    "spread": (
+        "a longer window for the initial state (HeldOut(window=...), or the "
+        "validation protocol's window) or predictions a few samples ahead "
+        "(validation_protocol=KStepAhead(k=...)), which measure the model, not "
+        "the estimate of its start"
+    ),
     "kinks": (
         "a narrower smoothing of the kinks (PhysicsLibrary(smoothing=...), 1e-3 by "
         "default) with more RK4 steps (discover(n_substeps=...))"

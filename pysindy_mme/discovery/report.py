@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core.tables import p_value, sig, signed, text_table
 from ..solver.output_error import WALL_DECAY
+from .run_sensitivity import spread_from
 
 __all__ = ["format_discovery"]
 
@@ -378,20 +379,28 @@ def _gain(res) -> list:
     out = ["4. The gain", "-" * 11]
     g = res.gain
     validation = g.validation_rmse_assumed is not None
+    # "*": a model's out-of-sample run its start's estimate spreads beyond
+    # the noise (explained below the table)
+    spread = {m: spread_from(g, m) for m in ("assumed", "extended")}
+    star = {m: "*" if when is not None else "" for m, when in spread.items()}
+    # and an in-sample run that rounding sets (named below the table)
+    rounded = {m: "*" if m in g.rounding_set else "" for m in ("assumed", "extended")}
     rows = []
     for j, name in enumerate(g.channel_names):
         row = [
             name,
-            sig(g.rmse_assumed[j]),
-            sig(g.rmse_extended[j]),
-            sig(g.ratio[j], 3) + "x",
+            sig(g.rmse_assumed[j]) + rounded["assumed"],
+            sig(g.rmse_extended[j]) + rounded["extended"],
+            sig(g.ratio[j], 3) + "x" + ("*" if g.rounding_set else ""),
             sig(g.noise_floor[j]),
         ]
         if validation:
             row += [
-                sig(g.validation_rmse_assumed[j]),
-                sig(g.validation_rmse_extended[j]),
-                sig(g.validation_ratio[j], 3) + "x",
+                sig(g.validation_rmse_assumed[j]) + star["assumed"],
+                sig(g.validation_rmse_extended[j]) + star["extended"],
+                sig(g.validation_ratio[j], 3)
+                + "x"
+                + ("*" if any(star.values()) else ""),
             ]
         rows.append(row)
     header = ["channel", "RMSE assumed", "RMSE extended", "gain (in-sample)", "noise"]
@@ -424,7 +433,7 @@ def _gain(res) -> list:
         )
     for name, when in g.rounding_set.items():
         out.append(
-            f"SET BY ROUNDING: the {name} model's in-sample run from t = {when:.6g} "
+            f"* SET BY ROUNDING: the {name} model's in-sample run from t = {when:.6g} "
             "on (see the notes); its RMSE and the gain over it are one run's among "
             "many the model allows within rounding, not the model's."
         )
@@ -435,6 +444,14 @@ def _gain(res) -> list:
             "free run; RMSE over the rest."
         )
         out.append(f"Out of sample ('valid.'): {source}; {method}")
+        for m, when in spread.items():
+            if when is not None:
+                out.append(
+                    f"* SPREAD BY ITS START: from t = {when:.6g} on, the {m} "
+                    "model's run there is spread by more than the noise by the "
+                    "standard error of its initial state (carried along the run): "
+                    "its RMSE measures that estimate as much as the model."
+                )
     return out
 
 

@@ -11,6 +11,11 @@ stays at ``x1 = 0`` from ``x1(0) = -9e-15`` and scores an RMSE of 2.26, where
 an independent RK4 run from the same state scores 6e14. Both are runs of the
 model within rounding, and neither RMSE measures the model.
 
+Out of sample the same question has a larger perturbation: each run starts
+from a state estimated from a short window, known to its standard error.
+:func:`spread_sentence` says where that error, carried along the run
+(:mod:`pysindy_mme.protocols.spread`), spreads it by more than the noise.
+
 :func:`rounding_sets_run` reads the fit's last linearisation (its interval
 maps' Jacobians along the fitted trajectory, which a joined fit shares with
 its free run) and finds where a change of the initial state at that
@@ -26,7 +31,14 @@ import numpy as np
 
 from ..core.integrate import GUIDED_TOL, perturbation_growth
 
-__all__ = ["ROUNDING_SHARE", "RoundingSet", "rounding_sets_run", "rounding_note"]
+__all__ = [
+    "ROUNDING_SHARE",
+    "RoundingSet",
+    "rounding_sets_run",
+    "rounding_note",
+    "spread_from",
+    "spread_sentence",
+]
 
 #: a free run counts as set by rounding where a change of its initial state
 #: at the precision it is solved to has grown to this share of the noise
@@ -107,4 +119,29 @@ def rounding_note(model_name: str, where: RoundingSet, rmse) -> str:
         "of one of many runs of the model within rounding (an independent "
         "simulation from the same state can end far away), and a gain over it "
         "measures that run, not the model: the model is unstable along the data"
+    )
+
+
+def spread_from(gain, name: str) -> float | None:
+    """The time from which model ``name``'s out-of-sample run is spread by
+    its initial state's estimate beyond the noise (None: nowhere, or no
+    such run)."""
+    run = (gain.validation_runs or {}).get(name)
+    return getattr(run, "determined_until", None)
+
+
+def spread_sentence(gain, name: str) -> str | None:
+    """Model ``name``'s out-of-sample run as the conclusion and the notes
+    name it when its start's estimate spreads it beyond the noise (None:
+    determined throughout)."""
+    when = spread_from(gain, name)
+    if when is None:
+        return None
+    return (
+        f"the {name} model's run on {gain.validation_source} is not determined "
+        f"by its initial state from t = {when:.6g} on: the estimate of that state "
+        f"from the leading {gain.validation_window} samples (its standard error "
+        "from the noise, carried along the run by the model) spreads the run by "
+        "more than the noise there, so even a perfect model would miss the data "
+        "by more than the noise"
     )

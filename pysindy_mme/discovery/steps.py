@@ -39,6 +39,7 @@ from .gain import Gain
 from .identifiability import exact_trade_offs, gauge_choice
 from .long_record import confirm_long_record, reduced_study, search_part
 from .memory import memory_evidence
+from .run_sensitivity import spread_sentence
 
 __all__ = [
     "AssumedFit",
@@ -1115,6 +1116,17 @@ def _set_out_of_sample(gain, outcome) -> None:
                 f"the {name} model's free run on {source} diverged at "
                 f"t = {run.diverged_at:.6g}: it has no out-of-sample RMSE"
             )
+    # the candidate explanation's run only: an assumed model that spreads
+    # its start's error is a worse predictor, and the report's gain table
+    # marks it (a warning there would be in nearly every study of an
+    # unstable or undamped assumed model)
+    spread = spread_sentence(gain, "extended")
+    if spread is not None:
+        gain.notes.append(
+            f"{spread}: its out-of-sample RMSE there measures that estimate as "
+            "much as the model. A longer window for the initial state, or "
+            "predictions a few samples ahead (KStepAhead), measure the model"
+        )
 
 
 def in_sample_run(study, fit, model, substeps) -> FreeRun:

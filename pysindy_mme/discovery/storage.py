@@ -59,7 +59,8 @@ anything else. ``result`` has these parts:
 ``gain``
     Step 5: the :class:`~.gain.Gain` with its free runs (without the models
     that ran); its ``rounding_set`` since version 3 (a file of version 1 or
-    2 reads with none).
+    2 reads with none); each free run's ``determined_until`` since version 4
+    (older files read with None).
 ``extended_model``
     Coefficients, intercept, ``substeps``, the assumed equations' text and
     the grey-box parameter values it runs with.
@@ -107,7 +108,7 @@ __all__ = [
 ]
 
 FORMAT = "pysindy-mme discovery"
-VERSION = 3
+VERSION = 4
 
 #: the :class:`~.inputs.Study` attributes saved (data, not code)
 STUDY_FIELDS = (

@@ -32,7 +32,7 @@ from .memory import discount_estimation_error
 from .options import as_options, refuse_moved
 from .propose import propose_terms
 from .result import Discovery
-from .run_sensitivity import rounding_note, rounding_sets_run
+from .run_sensitivity import rounding_note, rounding_sets_run, spread_sentence
 from .steps import (
     baseline,
     confirm_on_measurements,
@@ -429,6 +429,7 @@ def _evidence(
         out_extended=gain.validation_rmse_extended,
         out_source=gain.validation_source,
         out_converged=bool(gain.held_out_converged),
+        out_spread=spread_sentence(gain, "extended"),
         unidentified=[str(t) for t in trade_offs if not t.gauge]
         + _undetermined(fit, names, set(vanished)),
         vanished=list(vanished.values()),

@@ -20,6 +20,7 @@ from ..core.integrate import InputSignal, simulate_guided
 from ..core.model import AsBase
 from ..exceptions import DivergenceError, UnobservableError
 from ..solver.output_error import OutputErrorModel
+from .spread import determined_until, noise_covariance_of, run_spread
 
 __all__ = [
     "FreeRun",
@@ -87,6 +88,10 @@ class FreeRun:
     starts: list | None = None
     #: k-step-ahead predictions: samples predicted from each start (``k``)
     horizon: int | None = None
+    #: a run from a window's estimate: the first scored time at which the
+    #: spread its initial state's standard error causes passes the noise
+    #: (:mod:`.spread`; None: determined throughout, or not measured)
+    determined_until: float | None = None
 
 
 def free_run(model, x0, t, inputs: InputSignal, substeps, measure, y, window, guess):
@@ -135,6 +140,7 @@ def pooled_runs(per_record: list, ys: list) -> dict:
         with np.errstate(all="ignore"):
             pooled = np.sqrt(sq / np.maximum(count, 1))
         diverged = [r.diverged_at for r in runs if r.diverged_at is not None]
+        spread = [r.determined_until for r in runs if r.determined_until is not None]
         out[name] = FreeRun(
             x0=runs[0].x0,
             x=np.vstack([r.x for r in runs]),
@@ -143,6 +149,8 @@ def pooled_runs(per_record: list, ys: list) -> dict:
             model=runs[0].model,
             window=runs[0].window,
             records=runs,
+            # the earliest of the records' (each record's in ``records``)
+            determined_until=min(spread) if spread else None,
         )
     return out
 
@@ -275,11 +283,13 @@ def _x0_relative_se(fit, spread) -> float:
 
 
 def determined_window(study, models, features, substeps, record, inputs, guess, window):
-    """``(window, {name: (x0, offsets)})``: the leading window and each
-    model's initial state and offsets fitted to it. A window that leaves
-    some model's initial state undetermined (:data:`X0_UNDETERMINED`) is
-    doubled until it determines them all to :data:`X0_RELATIVE_SE`, up to a
-    fifth of the record.
+    """``(window, {name: (x0, offsets)}, {name: x0 covariance})``: the
+    leading window, each model's initial state and offsets fitted to it, and
+    that state's covariance from the noise alone
+    (:func:`.spread.noise_covariance_of`). A window that leaves some model's
+    initial state undetermined (:data:`X0_UNDETERMINED`) is doubled until it
+    determines them all to :data:`X0_RELATIVE_SE`, up to a fifth of the
+    record.
 
     A window of a fixed number of samples is a fixed share of a period only
     at one sampling rate: at a high rate it sees a sliver of the motion, and
@@ -319,7 +329,8 @@ def determined_window(study, models, features, substeps, record, inputs, guess, 
                 break
             window, fits = longer, longer_fits
             worst = max(_x0_relative_se(f, spread) for f in fits.values())
-    return window, {name: _start(study, f) for name, f in fits.items()}
+    starts = {name: _start(study, f) for name, f in fits.items()}
+    return window, starts, {name: noise_covariance_of(f) for name, f in fits.items()}
 
 
 def window_runs(study, models: dict, features, substeps, record, window) -> dict:
@@ -335,9 +346,10 @@ def window_runs(study, models: dict, features, substeps, record, window) -> dict
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = measurement_function(study.measurement)
     guess = record_guess(study, record)
-    window, starts = determined_window(
+    window, starts, x0_covs = determined_window(
         study, models, features, substeps, record, inputs_v, guess, window
     )
+    noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
     runs = {}
     for name, model_rhs in models.items():
         x0, offsets = starts[name]
@@ -357,4 +369,11 @@ def window_runs(study, models: dict, features, substeps, record, window) -> dict
             run_guess(study, name, guess),
         )
         runs[name].window = window
+        if runs[name].diverged_at is None:
+            spread = run_spread(
+                model_rhs, runs[name].x, t_v, inputs_v, substeps, shifted, x0_covs[name]
+            )
+            runs[name].determined_until = determined_until(
+                spread, noise_sd, t_v, window
+            )
     return runs

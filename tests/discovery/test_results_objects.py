@@ -326,6 +326,40 @@ def test_a_version_2_file_reads_with_no_run_set_by_rounding(saved, tmp_path):
     assert str(back) == str(res)
 
 
+def _without(value, key):
+    """``value`` (a saved file's JSON) with every ``key`` entry of a
+    record's fields removed."""
+    if isinstance(value, dict):
+        return {k: _without(v, key) for k, v in value.items() if k != key}
+    if isinstance(value, list):
+        return [_without(v, key) for v in value]
+    return value
+
+
+def test_a_version_3_file_reads_with_every_run_determined(saved, tmp_path):
+    # version 4 added each free run's determined_until
+    # (tests/protocols/test_run_spread.py); these records' held-out runs
+    # have one, and the report marks it
+    res, _, path = saved
+    runs = res.gain.validation_runs
+    assert any(r.determined_until is not None for r in runs.values())
+    assert "SPREAD BY ITS START" in str(res)
+    with np.load(path, allow_pickle=False) as data:
+        entries = {k: data[k] for k in data.files}
+    meta = json.loads(str(entries.pop("__meta__")))
+    meta = _without(meta, "determined_until")
+    meta["version"] = 3
+    older = tmp_path / "older.npz"
+    np.savez(older, __meta__=np.array(json.dumps(meta)), **entries)
+    back = Discovery.load(older)
+    assert all(r.determined_until is None for r in back.gain.validation_runs.values())
+    assert "SPREAD BY ITS START" not in str(back)
+    assert back.terms == res.terms
+    np.testing.assert_array_equal(
+        back.gain.validation_rmse_extended, res.gain.validation_rmse_extended
+    )
+
+
 def test_loaded_result_names_what_was_not_saved(saved):
     res, back, _ = saved
     x0 = res.extended_simulation[0]

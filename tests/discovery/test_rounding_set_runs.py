@@ -128,8 +128,16 @@ def test_an_unstable_assumed_model_over_a_long_record_is_named():
 def test_the_report_marks_the_run_and_a_saved_result_keeps_it(tmp_path):
     _, _, res = _lotka_volterra_study(75.0)
     assert set(res.gain.rounding_set) == {"assumed"}
-    line = [s for s in str(res).splitlines() if s.startswith("SET BY ROUNDING")]
+    text = str(res).splitlines()
+    line = [s for s in text if s.startswith("* SET BY ROUNDING")]
     assert len(line) == 1 and "the assumed model's in-sample run" in line[0]
+    # the table's in-sample cells of that model, and the gain over it, starred
+    first = text.index(
+        "Free-run RMSE against the measurements (noise = a perfect model):"
+    )
+    x1 = text[first + 3].split()  # after the header and its rule
+    assert x1[0] == "x1"
+    assert x1[1].endswith("*") and not x1[2].endswith("*") and x1[3].endswith("x*")
     res.save(tmp_path / "lv")
     back = Discovery.load(tmp_path / "lv")
     assert back.gain.rounding_set == res.gain.rounding_set

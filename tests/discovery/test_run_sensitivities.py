@@ -13,8 +13,13 @@ import pytest
 
 from pysindy_mme.core.integrate import InputSignal, simulate
 from pysindy_mme.core.model import ParametricModel
-from pysindy_mme.discovery.identifiability import _run_sensitivities
+from pysindy_mme.discovery.identifiability import (
+    GROWTH_LIMIT,
+    _run_sensitivities,
+    exact_trade_offs,
+)
 from pysindy_mme.feature_library import Overflow, PhysicsLibrary, Torricelli
+from pysindy_mme.solver.output_error import OutputErrorModel
 
 
 def _free_run(model, theta, x0, t, inputs, substeps):
@@ -63,7 +68,7 @@ def test_sensitivities_equal_central_differences_of_free_runs(hold):
     inputs = InputSignal(np.sin(0.9 * t), t, hold=hold)
     x0 = np.array([0.7, -0.2])
     x = _free_run(model, theta, x0, t, inputs, 2)
-    S = _run_sensitivities(model, theta, 3, x, t, inputs, 2)
+    S, _ = _run_sensitivities(model, theta, 3, x, t, inputs, 2)
     ref = _central(model, theta, 3, x0, t, inputs, 2)
     assert S.shape == (t.size, 2, 5)
     np.testing.assert_allclose(S[0], np.hstack([np.eye(2), np.zeros((2, 3))]))
@@ -93,7 +98,42 @@ def test_sensitivities_through_overflow_terms_solved_apart():
     x0 = np.array([2.5, 1.0])
     x = _free_run(model, theta, x0, t, inputs, 2)
     assert x[:, 0].max() > 3.0  # over the rim: the overflow term acts
-    S = _run_sensitivities(model, theta, 3, x, t, inputs, 2)
+    S, _ = _run_sensitivities(model, theta, 3, x, t, inputs, 2)
     ref = _central(model, theta, 3, x0, t, inputs, 2)
     scale = np.max(np.abs(ref), axis=(0, 1))
     np.testing.assert_allclose(S / scale, ref / scale, rtol=0, atol=1e-5)
+
+
+def _growing_product_model():
+    """``x' = a b x`` with ``a`` and ``b`` grey-box parameters: only the product
+    is determined, and the run grows as ``e^(a b t)``."""
+
+    def base(x, t, u, p):
+        return p[0] * p[1] * x
+
+    t = np.linspace(0.0, 12.0, 481)
+    rng = np.random.default_rng(5)
+    y = 1e-3 * np.exp(t)[:, None] + 0.01 * rng.standard_normal((t.size, 1))
+    engine = OutputErrorModel(
+        base, 1, None, y, t, None, np.array([[1e-4]]), np.eye(1), n_physical=2
+    )
+    fit = engine.fit((), np.array([1.25, 0.8]), np.exp(t)[:, None] * 1e-3)
+    return engine, fit
+
+
+def test_the_growth_is_that_of_the_run_and_an_exact_trade_off_survives_the_cut():
+    # the run amplifies a change of x(0) by e^12, past GROWTH_LIMIT at t = ln
+    # 1e3 = 6.9: the check reads the run up to there, and the product a b is
+    # still the only combination the data determine
+    engine, fit = _growing_product_model()
+    model = ParametricModel(engine.base, 1, 2)
+    x = fit.x
+    _, growth = _run_sensitivities(
+        model, fit.theta, 2, x, engine.t, engine.inputs, engine.n_substeps
+    )
+    rate = float(np.prod(fit.theta))
+    np.testing.assert_allclose(growth, np.exp(rate * engine.t), rtol=1e-6)
+    assert growth[-1] > 100 * GROWTH_LIMIT
+    (trade,) = exact_trade_offs(engine, fit, ["a", "b"], ["x"])
+    assert set(trade.names) == {"a", "b"}
+    assert trade.determined == ["a*b"] or trade.determined == ["b*a"]

@@ -1,0 +1,105 @@
+"""How far the uncertainty of a free run's initial state spreads the run.
+
+An out-of-sample run starts from a state fitted to a short window of the
+record (:func:`~.runs.determined_window`), known only to its standard
+error. Along the run the model carries a change of that state with it,
+damped on an attracting cycle, amplified where the model is unstable or
+chaotic. Where the spread it causes in a measured channel grows past the
+channel's noise, the run there is set by the window's estimate as much as
+by the model: even a perfect model would miss the data by more than the
+noise, and an RMSE over those samples measures the estimate, not the
+model (README, "Known limits": the window was checked against the state's
+standard error, not against the run's sensitivity to it).
+
+:func:`run_spread` propagates the initial state's covariance along the run
+with the RK4 interval maps' Jacobians (one vectorised pass and one banded
+solve, linear in the run's length); :func:`determined_until` reads where
+the spread first passes :data:`SPREAD_LIMIT` noise standard deviations.
+The propagation is linear: past that point a real run's spread may
+saturate (a chaotic attractor is bounded), but the run is no longer
+determined by its start either way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.integrate import run_jacobians, solve_recursion
+from ..core.jacobian import rowwise_jacobian
+
+__all__ = ["SPREAD_LIMIT", "run_spread", "determined_until", "noise_covariance_of"]
+
+#: a run counts as determined by its initial state while the spread that
+#: state's standard error causes in every measured channel is at most this
+#: many of the channel's noise standard deviations (at one, a perfect
+#: model's run misses the data by as much from its start as from the noise)
+SPREAD_LIMIT = 1.0
+
+
+def noise_covariance_of(fit) -> np.ndarray:
+    """``fit``'s initial-state covariance from the measurement noise alone
+    (a model's misfit beyond the noise is its own, not its start's): the
+    fit's covariance over its residual variance times inflation, as
+    :func:`~.runs._x0_relative_se` reads it. NaN where undetermined."""
+    cov = np.asarray(fit.x0_covariance, dtype=float)
+    s2 = float(fit.residual_variance * fit.inflation)
+    if np.isfinite(s2) and s2 > 0:
+        cov = cov / s2
+    return cov
+
+
+def _square_root(cov) -> np.ndarray | None:
+    """``L`` with ``L L^T = cov`` (None: a covariance that is not finite)."""
+    cov = np.asarray(cov, dtype=float)
+    if not np.all(np.isfinite(cov)):
+        return None
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def run_spread(model, x, t, inputs, substeps, measure, x0_cov) -> np.ndarray:
+    """``(N, m)``: each measured channel's standard deviation along the run
+    ``x (N, n)`` from an initial state of covariance ``x0_cov`` (linear
+    propagation; inf throughout when the covariance is not finite).
+
+    ``model``, ``inputs``, ``substeps``: as the run was simulated
+    (:func:`~pysindy_mme.core.integrate.simulate_guided`); ``measure``:
+    ``x -> y`` for all rows (its Jacobian is taken along the run).
+    """
+    x = np.asarray(x, dtype=float)
+    N, n = x.shape
+    H = rowwise_jacobian(measure, x)
+    root = _square_root(x0_cov)
+    if root is None or not np.all(np.isfinite(H)):
+        return np.full((N, H.shape[1]), np.inf)
+    # Z_k = A_{k-1} ... A_0 L: the propagated square root, one banded solve
+    # of Z_{k+1} = A_k Z_k with Z_1 = A_0 L as the forcing of its first row
+    Z = np.empty((N, n, n))
+    Z[0] = root
+    if N > 1:
+        A = run_jacobians(model, x, t, inputs, substeps)
+        forcing = np.zeros((N - 1, n, n))
+        forcing[0] = A[0] @ root
+        with np.errstate(all="ignore"):
+            z, info = solve_recursion(A, forcing)
+        Z[1:] = z if info == 0 else np.inf
+    with np.errstate(all="ignore"):
+        spread = np.sqrt(_channel_var(H, Z))
+    return np.where(np.isfinite(spread), spread, np.inf)
+
+
+def _channel_var(H, Z) -> np.ndarray:
+    """``(N, m)``: the squared norms of the rows of ``H_k Z_k``."""
+    HZ = np.einsum("kcj,kjl->kcl", H, Z)
+    return np.einsum("kcl,kcl->kc", HZ, HZ)
+
+
+def determined_until(spread, noise_sd, t, first: int = 0) -> float | None:
+    """The first time at or after sample ``first`` at which some channel's
+    ``spread`` exceeds :data:`SPREAD_LIMIT` times its ``noise_sd`` (None:
+    nowhere)."""
+    spread = np.asarray(spread, dtype=float)
+    over = np.any(spread[first:] > SPREAD_LIMIT * np.asarray(noise_sd)[None], axis=1)
+    if not over.any():
+        return None
+    return float(t[first + int(np.argmax(over))])
