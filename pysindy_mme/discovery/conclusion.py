@@ -220,6 +220,9 @@ class Evidence:
         Out-of-sample free runs; ``out_source`` says on what.
     out_converged : bool
         The refits the out-of-sample runs come from converged.
+    rivals : list of str
+        Sentences naming models with other terms that fit nearly as well
+        (:attr:`~.confirm.Confirmation.rivals`): the verdict names them.
     out_spread : str or None
         Where the extended model's out-of-sample run stops being determined
         by its initial state's estimate (:mod:`~pysindy_mme.protocols.spread`),
@@ -264,6 +267,7 @@ class Evidence:
     out_source: str | None = None
     out_converged: bool = True
     out_spread: str | None = None
+    rivals: list = field(default_factory=list)
     unidentified: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
     parameter_advice: str | None = None
@@ -462,13 +466,23 @@ def _with_terms(ev: Evidence) -> Conclusion:
     # why the extended model's held-out run misses the data by more than its
     # fit would suggest, where its start's estimate spreads it
     spread = (f"{ev.out_spread}",) if ev.out_spread else ()
+    # other terms that fit nearly as well: the data explain the record with
+    # these terms, but do not single them out
+    rivals = tuple(ev.rivals)
+    rival_text = (
+        "; other terms fit nearly as well (see the reasons), so the data do not "
+        "single these out"
+        if rivals
+        else ""
+    )
     if np.all(ev.rmse_extended <= FIT_FACTOR * ev.noise_floor):
         verdict = (
             "the data contradict the assumed model; the identified terms explain "
-            f"it ({terms}: {gain_text})"
+            f"it ({terms}: {gain_text}){rival_text}"
         )
         reasons = (
             f"{held[2]}",
+            *rivals,
             *spread,
             f"the extended model fits its record {fit_text} (at most {FIT_FACTOR}x)",
             "every refit converged, and no kept term or parameter is unidentified",
@@ -477,7 +491,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
     verdict = (
         "the data contradict the assumed model; the identified terms explain part "
         f"of it ({terms}: {gain_text}), but the extended model still misses the "
-        f"data ({fit_text})"
+        f"data ({fit_text}){rival_text}"
     )
     if ev.kink_misfit is not None and ev.kink_misfit <= KINK_MISFIT_SHARE:
         # what is left follows a numerical choice, not the plant
@@ -487,6 +501,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
         )
         reasons = (
             f"{held[2]}",
+            *rivals,
             f"the extended model still misses its record {fit_text}, more than "
             f"{FIT_FACTOR}x, but refitted with its kinks smoothed over half the "
             "width (and twice the RK4 steps) that misfit falls to "
@@ -504,6 +519,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
     )
     reasons = (
         f"{held[2]}",
+        *rivals,
         f"the extended model still misses its record {fit_text}, more than "
         f"{FIT_FACTOR}x: part of the effect is not in the library{kinks}",
     )

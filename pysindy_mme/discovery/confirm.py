@@ -75,6 +75,11 @@ TRIAL_FIRST = 4
 TRIAL_TOL = 1e-6
 #: look-alike functions tried in place of each term
 N_LOOK_ALIKES = 2
+#: a model with other terms whose BIC is less than this above the kept model's
+#: is named as a rival: Kass and Raftery's (1995) scale calls a BIC
+#: difference of 2-6 "positive" evidence and 6-10 "strong"; below 6 the data
+#: do not tell the two models apart strongly
+RIVAL_BIC = 6.0
 #: Gauss-Newton iterations of a polish (the chosen model's fit)
 POLISH_ITER = 50
 #: further polishes of a fit that has not joined when its budget ran out
@@ -105,6 +110,11 @@ class Confirmation:
     notes : list of str
         What the report must say about the kept terms (a flow kept as a
         wall whose rate the data do not fix).
+    rivals : list of (slots, float)
+        Models the search fitted that neither contain the kept terms nor
+        are contained in them, with a BIC less than :data:`RIVAL_BIC` above
+        the kept model's (that difference, smallest first): other terms the
+        data tell from the kept ones only weakly.
     """
 
     slots: list
@@ -113,6 +123,7 @@ class Confirmation:
     correction_p_value: float = float("nan")
     log: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    rivals: list = field(default_factory=list)
 
 
 class _Search:
@@ -144,6 +155,8 @@ class _Search:
         self.unjoined = set()
         # every current model whose fit joined: (slots, fit), see _best_visited
         self.visited = []
+        # models a swap tried and did not keep (slots, fit), see _rivals
+        self.tried_swaps = []
 
     # ------------------------------------------------------------ MME start
     def mme_fit(self) -> OutputErrorFit:
@@ -599,6 +612,8 @@ def _swap_round(search: _Search, checked) -> bool:
             if not trial.ok:
                 continue
             slots, trial, _ = search.backward(slots, trial)
+            if trial.ok and trial.joined:
+                search.tried_swaps.append((list(slots), trial))
             if better_bic(trial, search.fit) and (
                 best is None or better_bic(trial, best[1])
             ):
@@ -1120,4 +1135,33 @@ def _verdict(search: _Search, assumed: OutputErrorFit, alpha, min_effect):
         )
         search.rejected.extend((s, why) for s in search.slots)
         return Confirmation([], None, search.rejected, p_total, search.log)
-    return Confirmation(list(search.slots), fit, search.rejected, p_total, search.log)
+    return Confirmation(
+        list(search.slots),
+        fit,
+        search.rejected,
+        p_total,
+        search.log,
+        rivals=_rivals(search),
+    )
+
+
+def _rivals(search: _Search) -> list:
+    """``[(slots, BIC difference)]``: the models fitted on the way (kept or
+    tried as swaps) with other terms, not nested with the kept ones, whose
+    BIC is within :data:`RIVAL_BIC` of the kept model's; the best fit of
+    each set of terms, smallest difference first. Nested models are the
+    tests' business (a term's own p-value), not a rival's."""
+    final = search.fit
+    if not (final.ok and final.joined):
+        return []
+    kept = set(search.slots)
+    best = {}
+    for slots, fit in search.visited + search.tried_swaps:
+        terms = frozenset(slots)
+        if not (fit.ok and fit.joined) or terms <= kept or terms >= kept:
+            continue
+        c = min(fit.inflation, final.inflation)
+        delta = float(fit.bic(c) - final.bic(c))
+        if delta < RIVAL_BIC and (terms not in best or delta < best[terms][1]):
+            best[terms] = (list(slots), delta)
+    return sorted(best.values(), key=lambda item: item[1])

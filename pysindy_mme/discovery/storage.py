@@ -45,7 +45,8 @@ anything else. ``result`` has these parts:
     ``residuals_`` and ``n_substeps``.
 ``assumed``, ``confirmation``
     Step 1 (chi-square test, substeps, notes) and step 4 (kept slots,
-    rejections, F-test, log), each with its output-error fit: ``theta``,
+    rejections, F-test, log; its rivals since version 4), each with its
+    output-error fit: ``theta``,
     ``x``, ``cost``, counts, ``covariance``, ``x0_covariance``,
     ``inflation``, ``at_bound`` ... (:data:`FIT_FIELDS`), from which the
     standard errors, intervals and tests are recomputed exactly.
@@ -390,6 +391,10 @@ def _result_dict(res) -> dict:
             "rejected": list(res.confirmation.rejected),
             "correction_p_value": res.confirmation.correction_p_value,
             "log": list(res.confirmation.log),
+            "rivals": [
+                [list(slots), float(delta)]
+                for slots, delta in getattr(res.confirmation, "rivals", [])
+            ],
         },
         "gain": res.gain,
         "extended_model": {
@@ -756,6 +761,8 @@ def load(path, result_class, assumed_model=None):
         rejected=c["rejected"],
         correction_p_value=c["correction_p_value"],
         log=c["log"],
+        # since version 4
+        rivals=[(list(slots), float(d)) for slots, d in c.get("rivals", [])],
     )
     extended = _extended(r["extended_model"], study, library, model)
     result = result_class(

@@ -24,6 +24,7 @@ from .conclusion import (
     conclude,
     memory_decides,
 )
+from .confirm import RIVAL_BIC
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
 from .identifiability import exact_trade_offs
@@ -318,6 +319,7 @@ def run_study(study, progress: Progress) -> Discovery:
             crossed,
             memory,
             kink_misfit,
+            rival_sentences(study, proposals, confirmation),
         )
 
     evidence = evidence_with(memory)
@@ -406,6 +408,7 @@ def _evidence(
     crossed=(),
     memory=(),
     kink_misfit=None,
+    rivals=(),
 ) -> Evidence:
     fit = confirmation.fit or assumed.fit
     noise = study.noise_doubt
@@ -430,6 +433,7 @@ def _evidence(
         out_source=gain.validation_source,
         out_converged=bool(gain.held_out_converged),
         out_spread=spread_sentence(gain, "extended"),
+        rivals=list(rivals),
         unidentified=[str(t) for t in trade_offs if not t.gauge]
         + _undetermined(fit, names, set(vanished)),
         vanished=list(vanished.values()),
@@ -738,6 +742,31 @@ def _partial_f(proposals, study, state, column) -> float:
     return float("nan")
 
 
+def rival_sentences(study, proposals, confirmation) -> list:
+    """A sentence per rival of the kept terms (:attr:`.confirm.Confirmation.rivals`)."""
+    out = []
+    kept = list(confirmation.slots)
+    k0 = len(study.parameter_names)
+    for slots, delta in getattr(confirmation, "rivals", []):
+        own = [s for s in kept if s not in slots]
+        theirs = [s for s in slots if s not in kept]
+        names = _term_names(study, proposals, own + theirs)[k0:]
+        own_names, their_names = names[: len(own)], names[len(own) :]
+        out.append(
+            f"the data tell {_and(own_names)} from {_and(their_names)} only weakly: "
+            f"the model with {_and(their_names)} in place of {_and(own_names)} "
+            f"fits nearly as well (its BIC is {sig(delta, 2)} above this one's; "
+            f"strong evidence needs {RIVAL_BIC:g}), so which of them the effect "
+            "is, these data do not say"
+        )
+    return out
+
+
+def _and(names) -> str:
+    names = list(names) or ["no term"]
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
 def _term_names(study, proposals, slots) -> list:
     """A name per grey-box parameter and per term of ``slots`` (no offsets)."""
     return list(study.parameter_names) + [
@@ -757,6 +786,7 @@ def _notes(
     made while the fit still had its linearisation."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
     notes += list(confirmation.notes)
+    notes += rival_sentences(study, proposals, confirmation)
     shown = ""
     kink_misfit = None
     fit = confirmation.fit
