@@ -712,12 +712,15 @@ def _run_form(rhs, guess):
     return rhs, split, _difference_jacobian(rhs, guess, own_jacobian)
 
 
-def run_jacobians(rhs, x, t, inputs: InputSignal | None, substeps: int):
-    """``A (N - 1, n, n)``: the RK4 interval maps' ``dPhi_k/dx`` along a run.
+def run_jacobians(
+    rhs, x, t, inputs: InputSignal | None, substeps: int, intervals=slice(None)
+):
+    """``A (K, n, n)``: the RK4 interval maps' ``dPhi_k/dx`` along a run.
 
     ``x (N, n)``: the run (a :func:`simulate_guided` result, finite); the
-    model as :func:`simulate_guided` integrates it, all intervals in one
-    vectorised pass.
+    model as :func:`simulate_guided` integrates it (its Jacobian's steps
+    scaled by the whole run), over the ``intervals`` (a slice of the
+    ``N - 1``; all by default) in one vectorised pass.
     """
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
@@ -726,10 +729,10 @@ def run_jacobians(rhs, x, t, inputs: InputSignal | None, substeps: int):
     with np.errstate(all="ignore"):
         out = rk4_flow(
             rhs,
-            x[:-1],
-            t[:-1],
-            np.diff(t),
-            lambda frac: inputs.on_intervals(frac),
+            x[:-1][intervals],
+            t[:-1][intervals],
+            np.diff(t)[intervals],
+            lambda frac: inputs.on_intervals(frac, intervals),
             substeps,
             jac_x=jac_x,
             split=split,

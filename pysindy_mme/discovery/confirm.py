@@ -613,7 +613,7 @@ def _swap_round(search: _Search, checked) -> bool:
                 continue
             slots, trial, _ = search.backward(slots, trial)
             if trial.ok and trial.joined:
-                search.tried_swaps.append((list(slots), trial))
+                search.tried_swaps.append((list(slots), _Scored.of(trial)))
             if better_bic(trial, search.fit) and (
                 best is None or better_bic(trial, best[1])
             ):
@@ -1143,6 +1143,35 @@ def _verdict(search: _Search, assumed: OutputErrorFit, alpha, min_effect):
         search.log,
         rivals=_rivals(search),
     )
+
+
+@dataclass(frozen=True)
+class _Scored:
+    """What :func:`_rivals` reads of a fit the search tried and did not keep:
+    its BIC's parts, not the fit (whose trajectory and linearisation a
+    search of many swaps on a long record would otherwise hold)."""
+
+    slots: tuple
+    cost: float
+    n_residuals: int
+    inflation: float
+    ok: bool = True
+    joined: bool = True
+
+    @classmethod
+    def of(cls, fit) -> _Scored:
+        return cls(
+            tuple(fit.slots),
+            float(fit.cost),
+            int(fit.n_residuals),
+            float(fit.inflation),
+        )
+
+    def bic(self, inflation: float | None = None) -> float:
+        """As :meth:`~pysindy_mme.solver.output_error.OutputErrorFit.bic`."""
+        inflation = self.inflation if inflation is None else inflation
+        n_eff = max(self.n_residuals / inflation, 2.0)
+        return self.cost / inflation + len(self.slots) * np.log(n_eff)
 
 
 def _rivals(search: _Search) -> list:

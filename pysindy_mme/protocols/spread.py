@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.integrate import run_jacobians, solve_recursion
-from ..core.jacobian import rowwise_jacobian
+from ..core.jacobian import column_scale, rowwise_jacobian
 
 __all__ = ["SPREAD_LIMIT", "run_spread", "determined_until", "noise_covariance_of"]
 
@@ -34,6 +34,9 @@ __all__ = ["SPREAD_LIMIT", "run_spread", "determined_until", "noise_covariance_o
 #: many of the channel's noise standard deviations (at one, a perfect
 #: model's run misses the data by as much from its start as from the noise)
 SPREAD_LIMIT = 1.0
+
+#: intervals of a run propagated at once (:func:`run_spread`)
+BLOCK = 1 << 16
 
 
 def noise_covariance_of(fit) -> np.ndarray:
@@ -64,27 +67,37 @@ def run_spread(model, x, t, inputs, substeps, measure, x0_cov) -> np.ndarray:
 
     ``model``, ``inputs``, ``substeps``: as the run was simulated
     (:func:`~pysindy_mme.core.integrate.simulate_guided`); ``measure``:
-    ``x -> y`` for all rows (its Jacobian is taken along the run).
+    ``x -> y`` for all rows (its Jacobian is taken along the run). The run
+    is taken in blocks of :data:`BLOCK` intervals, each from the end of the
+    one before: the memory is a block's, the cost linear in the run.
     """
     x = np.asarray(x, dtype=float)
     N, n = x.shape
-    H = rowwise_jacobian(measure, x)
+    scale = column_scale(x)
+    m = measure(x[:1]).shape[1]
     root = _square_root(x0_cov)
-    if root is None or not np.all(np.isfinite(H)):
-        return np.full((N, H.shape[1]), np.inf)
-    # Z_k = A_{k-1} ... A_0 L: the propagated square root, one banded solve
-    # of Z_{k+1} = A_k Z_k with Z_1 = A_0 L as the forcing of its first row
-    Z = np.empty((N, n, n))
-    Z[0] = root
-    if N > 1:
-        A = run_jacobians(model, x, t, inputs, substeps)
-        forcing = np.zeros((N - 1, n, n))
-        forcing[0] = A[0] @ root
+    if root is None:
+        return np.full((N, m), np.inf)
+    spread = np.empty((N, m))
+    Z = root[None]  # Z_k = A_{k-1} ... A_0 L, here at the block's first sample
+    for lo in range(0, max(N - 1, 1), BLOCK):
+        hi = min(lo + BLOCK, N - 1)
+        rows = slice(lo, hi + 1)
+        H = rowwise_jacobian(measure, x[rows], scale=scale)
+        block = np.empty((hi + 1 - lo, n, n))
+        block[0] = Z[-1]
+        if hi > lo:
+            A = run_jacobians(model, x, t, inputs, substeps, slice(lo, hi))
+            # Z_{k+1} = A_k Z_k: one banded solve with the block's first
+            # state as the forcing of its first row
+            forcing = np.zeros((hi - lo, n, n))
+            forcing[0] = A[0] @ block[0]
+            with np.errstate(all="ignore"):
+                z, info = solve_recursion(A, forcing)
+            block[1:] = z if info == 0 else np.inf
         with np.errstate(all="ignore"):
-            z, info = solve_recursion(A, forcing)
-        Z[1:] = z if info == 0 else np.inf
-    with np.errstate(all="ignore"):
-        spread = np.sqrt(_channel_var(H, Z))
+            spread[rows] = np.sqrt(_channel_var(H, block))
+        Z = block
     return np.where(np.isfinite(spread), spread, np.inf)
 
 

@@ -16,7 +16,7 @@ import pytest
 from confirm_stand_ins import stand_in_fit, stand_in_search
 
 from pysindy_mme import Discovery, PowerLibrary, discover
-from pysindy_mme.discovery.confirm import RIVAL_BIC, _rivals
+from pysindy_mme.discovery.confirm import RIVAL_BIC, _rivals, _Scored
 from pysindy_mme.discovery.options import grouped_keywords
 from pysindy_mme.systems import van_der_pol
 
@@ -88,6 +88,10 @@ def test_the_true_law_is_named_beside_its_look_alikes_on_the_paper_record(tmp_pa
     named = [r for r in res.reasons if "only weakly" in r]
     assert named and "the model with x1^2 x2 in x2' in place of" in named[0]
     assert any("only weakly" in w for w in res.warnings)
+    # what a tried swap keeps of its fit scores it as the fit itself does
+    fit = res.extended_fit
+    for c in (None, 1.0, 2.5):
+        assert _Scored.of(fit).bic(c) == fit.bic(c)
     res.save(tmp_path / "rivals")
     back = Discovery.load(tmp_path / "rivals")
     assert back.confirmation.rivals == res.confirmation.rivals

@@ -10,6 +10,7 @@ initial states in an independent RK4 loop, differenced.
 import numpy as np
 import pytest
 
+import pysindy_mme.protocols.spread as spread_module
 from pysindy_mme.core.integrate import simulate_guided
 from pysindy_mme.discovery.conclusion import Evidence, conclude
 from pysindy_mme.protocols.spread import (
@@ -148,3 +149,17 @@ def test_an_explanation_names_the_spread_among_its_reasons():
     found = conclude(_evidence(0.11, SPREAD))
     assert found.label == "explained"
     assert SPREAD in found.reasons
+
+
+def test_blocks_of_the_run_chain_into_the_same_spread(monkeypatch):
+    # blocks of 7 intervals (a last one short) against the run in one block
+    def f(x, t, u=None):
+        return np.column_stack([x[:, 1], -x[:, 0] + x[:, 1] - x[:, 0] ** 2 * x[:, 1]])
+
+    t = np.linspace(0.0, 8.0, 321)
+    x = _rk4_loop(f, np.array([1.5, 0.2]), t)
+    cov = np.array([[4e-4, 1e-4], [1e-4, 9e-4]])
+    whole = run_spread(f, x, t, None, 1, lambda x: x, cov)
+    monkeypatch.setattr(spread_module, "BLOCK", 7)
+    blocks = run_spread(f, x, t, None, 1, lambda x: x, cov)
+    np.testing.assert_allclose(blocks, whole, rtol=1e-12)
