@@ -432,9 +432,9 @@ def _with_terms(ev: Evidence) -> Conclusion:
         gain, worst, text = held
         worse = gain < 1.0 / HELD_OUT_MARGIN or worst < 1.0 / HELD_OUT_MARGIN
         if ev.out_spread and (worse or gain < HELD_OUT_MARGIN):
-            # A run its start's estimate spreads by more than the noise
-            # misses the data even for a perfect model: neither "worse" nor
-            # "too small a gain" is then the model's
+            # A run its start's estimate spreads by more than the noise is
+            # expected to miss the data even for a perfect model: "worse" or
+            # "too small a gain" may then be the estimate's, not the model's
             blockers.append(f"on {text}; but {ev.out_spread}")
             advice.append(_TRY["spread"])
         elif worse:

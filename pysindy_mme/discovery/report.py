@@ -450,7 +450,7 @@ def _gain(res) -> list:
                     f"* SPREAD BY ITS START: from t = {when:.6g} on, the {m} "
                     "model's run there is spread by more than the noise by the "
                     "standard error of its initial state (carried along the run): "
-                    "its RMSE measures that estimate as much as the model."
+                    "its RMSE there can measure that estimate as much as the model."
                 )
     return out
 

@@ -142,6 +142,6 @@ def spread_sentence(gain, name: str) -> str | None:
         f"by its initial state from t = {when:.6g} on: the estimate of that state "
         f"from the leading {gain.validation_window} samples (its standard error "
         "from the noise, carried along the run by the model) spreads the run by "
-        "more than the noise there, so even a perfect model would miss the data "
-        "by more than the noise"
+        "more than the noise there, so even a perfect model can miss the data "
+        "there by more than the noise"
     )

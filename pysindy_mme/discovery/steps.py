@@ -1123,8 +1123,8 @@ def _set_out_of_sample(gain, outcome) -> None:
     spread = spread_sentence(gain, "extended")
     if spread is not None:
         gain.notes.append(
-            f"{spread}: its out-of-sample RMSE there measures that estimate as "
-            "much as the model. A longer window for the initial state, or "
+            f"{spread}: its out-of-sample RMSE there can measure that estimate "
+            "as much as the model. A longer window for the initial state, or "
             "predictions a few samples ahead (KStepAhead), measure the model"
         )
 

@@ -6,10 +6,11 @@ error. Along the run the model carries a change of that state with it,
 damped on an attracting cycle, amplified where the model is unstable or
 chaotic. Where the spread it causes in a measured channel grows past the
 channel's noise, the run there is set by the window's estimate as much as
-by the model: even a perfect model would miss the data by more than the
-noise, and an RMSE over those samples measures the estimate, not the
-model (README, "Known limits": the window was checked against the state's
-standard error, not against the run's sensitivity to it).
+by the model: even a perfect model is expected to miss the data by more
+than the noise, and an RMSE over those samples can measure the estimate,
+not the model (one run's own error is one draw: it can be smaller). README,
+"Known limits": the window was checked against the state's standard error,
+not against the run's sensitivity to it.
 
 :func:`run_spread` propagates the initial state's covariance along the run
 with the RK4 interval maps' Jacobians (one vectorised pass and one banded

@@ -163,3 +163,37 @@ def test_blocks_of_the_run_chain_into_the_same_spread(monkeypatch):
     monkeypatch.setattr(spread_module, "BLOCK", 7)
     blocks = run_spread(f, x, t, None, 1, lambda x: x, cov)
     np.testing.assert_allclose(blocks, whole, rtol=1e-12)
+
+
+def test_the_window_states_covariance_matches_its_errors_over_seeds():
+    # what the spread starts from: the paper's held-out window (16 samples of
+    # x1 at 40 Hz, x2 unmeasured), the true model fitted to it; over 30 noise
+    # seeds the state's error in the units of its covariance is chi-square
+    # with 2 dof (mean 2, sd of a 30-seed mean 0.37)
+    from types import SimpleNamespace
+
+    from pysindy_mme.core.integrate import InputSignal
+    from pysindy_mme.protocols.runs import _window_fit
+    from pysindy_mme.protocols.spread import noise_covariance_of
+    from pysindy_mme.systems import van_der_pol
+
+    system = van_der_pol()
+    study = SimpleNamespace(
+        offsets=False,
+        noise_cov=np.array([[0.01]]),
+        measurement=np.array([[1.0, 0.0]]),
+        n_states=2,
+    )
+
+    def model(x, t, u=None):
+        return system.true_model(x, t)
+
+    chi2 = []
+    for seed in range(30):
+        data = system.measure(seed)
+        rows = slice(data.t.size - 80, data.t.size - 64)
+        y, t, x = data.y[rows], data.t[rows], data.x[rows]
+        fit = _window_fit(study, model, None, 1, y, t, InputSignal(None, t), x)
+        error = fit.x[0] - x[0]
+        chi2.append(error @ np.linalg.solve(noise_covariance_of(fit), error))
+    assert 1.0 < np.mean(chi2) < 3.2
