@@ -648,8 +648,7 @@ def simulate_guided(
     inputs = inputs if inputs is not None else InputSignal(None, t)
     scale = max(1.0, float(np.max(np.abs(x))))
     bound = 1e8 * scale if bound is None else bound
-    rhs, split, own_jac = _run_form(rhs, guess)
-    jac_x = own_jac if jac_x is None else jac_x
+    rhs, split, jac_x = _run_form(rhs, guess, jac_x)
 
     def rhs_rows(X, s, u):
         uu = None if u is None else np.broadcast_to(u, (X.shape[0], u.shape[-1]))
@@ -691,7 +690,7 @@ def simulate_guided(
     return SimulationResult(x[None], np.array([-1]))
 
 
-def _run_form(rhs, guess):
+def _run_form(rhs, guess, jac_x=None):
     """``(rhs, split, jac_x)``: a model as the guided run integrates it.
 
     An extended model (it offers a split form) without its checks, the same
@@ -699,8 +698,8 @@ def _run_form(rhs, guess):
     model's ``unchecked``: a user's bare function may give a one-state
     answer as a row, which only the checked call reshapes.) Its overflow
     terms are split off (solved exactly around each RK4 step), and ``jac_x``
-    is the model's own Jacobian or central differences scaled by ``guess``
-    (:func:`_difference_jacobian`).
+    (when not given) is the model's own Jacobian or central differences
+    scaled by ``guess`` (:func:`_difference_jacobian`).
     """
     own_jacobian = None
     if callable(getattr(rhs, "split_form", None)) and callable(
@@ -709,35 +708,39 @@ def _run_form(rhs, guess):
         rhs = rhs.unchecked()
         own_jacobian = getattr(rhs, "jacobian", None)
     rhs, split = split_form(rhs)
-    return rhs, split, _difference_jacobian(rhs, guess, own_jacobian)
+    if jac_x is None:
+        jac_x = _difference_jacobian(rhs, guess, own_jacobian)
+    return rhs, split, jac_x
 
 
-def run_jacobians(
-    rhs, x, t, inputs: InputSignal | None, substeps: int, intervals=slice(None)
-):
-    """``A (K, n, n)``: the RK4 interval maps' ``dPhi_k/dx`` along a run.
+def run_jacobians(rhs, x, t, inputs: InputSignal | None, substeps: int, block: int):
+    """``(lo, A)`` for the run's intervals in blocks of ``block``: ``A (K, n,
+    n)`` the RK4 interval maps' ``dPhi_k/dx`` on intervals ``lo .. lo + K``.
 
     ``x (N, n)``: the run (a :func:`simulate_guided` result, finite); the
-    model as :func:`simulate_guided` integrates it (its Jacobian's steps
-    scaled by the whole run), over the ``intervals`` (a slice of the
-    ``N - 1``; all by default) in one vectorised pass.
+    model as :func:`simulate_guided` integrates it (prepared once, its
+    Jacobian's steps scaled by the whole run), each block in one vectorised
+    pass: the memory is a block's.
     """
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
     inputs = inputs if inputs is not None else InputSignal(None, t)
     rhs, split, jac_x = _run_form(rhs, x)
-    with np.errstate(all="ignore"):
-        out = rk4_flow(
-            rhs,
-            x[:-1][intervals],
-            t[:-1][intervals],
-            np.diff(t)[intervals],
-            lambda frac: inputs.on_intervals(frac, intervals),
-            substeps,
-            jac_x=jac_x,
-            split=split,
-        )
-    return out.D
+    h = np.diff(t)
+    for lo in range(0, h.size, block):
+        rows = slice(lo, min(lo + block, h.size))
+        with np.errstate(all="ignore"):
+            out = rk4_flow(
+                rhs,
+                x[rows],
+                t[rows],
+                h[rows],
+                lambda frac, rows=rows: inputs.on_intervals(frac, rows),
+                substeps,
+                jac_x=jac_x,
+                split=split,
+            )
+        yield lo, out.D
 
 
 def _difference_jacobian(rhs, guess, own=None):

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
-from ..solver.output_error import OutputErrorFit, OutputErrorModel
+from ..solver.output_error import OutputErrorFit, OutputErrorModel, bic_of
 from ..solver.statistics import better_bic, partial_f_p_value
 
 __all__ = ["Confirmation", "confirm_terms", "partial_f_p_value"]
@@ -1170,8 +1170,7 @@ class _Scored:
     def bic(self, inflation: float | None = None) -> float:
         """As :meth:`~pysindy_mme.solver.output_error.OutputErrorFit.bic`."""
         inflation = self.inflation if inflation is None else inflation
-        n_eff = max(self.n_residuals / inflation, 2.0)
-        return self.cost / inflation + len(self.slots) * np.log(n_eff)
+        return bic_of(self.cost, self.n_residuals, len(self.slots), inflation)
 
 
 def _rivals(search: _Search) -> list:

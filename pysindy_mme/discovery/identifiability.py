@@ -242,7 +242,6 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
     guess = fit.x[:K]
     q0 = np.concatenate([fit.x[0], theta])
     labels = [f"{name}(0)" for name in state_names] + list(names)
-    scale_x = np.sqrt(np.mean(fit.x[:K] ** 2, axis=0)) + 1e-300
 
     # The free run, from the fit's trajectory (a converged fit's is the run
     # already), and its exact sensitivities to every quantity at once.
@@ -258,7 +257,7 @@ def _null_space(engine, fit, names, state_names, measured_states=None):
         # within them is judged on them)
         K = max(int(np.argmax(over)), min(K, 3))
         base, S = base[:K], S[:K]
-        scale_x = np.sqrt(np.mean(fit.x[:K] ** 2, axis=0)) + 1e-300
+    scale_x = np.sqrt(np.mean(fit.x[:K] ** 2, axis=0)) + 1e-300
     if not (np.all(np.isfinite(base)) and np.all(np.isfinite(S))):
         return None  # the free run left the finite range: nothing to say here
     whiten = _whitener(engine.R)

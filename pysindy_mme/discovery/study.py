@@ -293,8 +293,18 @@ def run_study(study, progress: Progress) -> Discovery:
             estimate.x,
         )
     progress.stage("5. gain measured")
+    # named among the warnings and the conclusion's reasons alike
+    rivals = rival_sentences(study, proposals, confirmation)
     notes, smoothing, kink_misfit = _notes(
-        study, assumed, estimate, proposals, confirmation, gain, engine, step_note
+        study,
+        assumed,
+        estimate,
+        proposals,
+        confirmation,
+        gain,
+        engine,
+        step_note,
+        rivals,
     )
     terms, estimates = _terms(study, proposals, confirmation)
     names = _quantity_names(study, proposals, extended_fit)
@@ -319,7 +329,7 @@ def run_study(study, progress: Progress) -> Discovery:
             crossed,
             memory,
             kink_misfit,
-            rival_sentences(study, proposals, confirmation),
+            rivals,
         )
 
     evidence = evidence_with(memory)
@@ -775,7 +785,15 @@ def _term_names(study, proposals, slots) -> list:
 
 
 def _notes(
-    study, assumed, estimate, proposals, confirmation, gain, engine, step_note=None
+    study,
+    assumed,
+    estimate,
+    proposals,
+    confirmation,
+    gain,
+    engine,
+    step_note=None,
+    rivals=(),
 ):
     """Everything the user must know about how far to trust the numbers:
     ``(notes, smoothing, kink_misfit)``, the second the smoothing check's
@@ -783,10 +801,11 @@ def _notes(
     model), the third its :attr:`~.steps.SmoothingCheck.misfit_ratio`
     (None: not measured).
     ``step_note``: the integrator check's (:func:`~.steps.step_size_check`),
-    made while the fit still had its linearisation."""
+    made while the fit still had its linearisation; ``rivals``: the
+    sentences of :func:`rival_sentences`."""
     notes = list(estimate.notes) + list(assumed.notes) + list(gain.notes)
     notes += list(confirmation.notes)
-    notes += rival_sentences(study, proposals, confirmation)
+    notes += list(rivals)
     shown = ""
     kink_misfit = None
     fit = confirmation.fit

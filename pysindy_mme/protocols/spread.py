@@ -75,30 +75,29 @@ def run_spread(model, x, t, inputs, substeps, measure, x0_cov) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     N, n = x.shape
     scale = column_scale(x)
-    m = measure(x[:1]).shape[1]
+    H = rowwise_jacobian(measure, x[:1], scale=scale)
     root = _square_root(x0_cov)
     if root is None:
-        return np.full((N, m), np.inf)
-    spread = np.empty((N, m))
-    Z = root[None]  # Z_k = A_{k-1} ... A_0 L, here at the block's first sample
-    for lo in range(0, max(N - 1, 1), BLOCK):
-        hi = min(lo + BLOCK, N - 1)
-        rows = slice(lo, hi + 1)
-        H = rowwise_jacobian(measure, x[rows], scale=scale)
-        block = np.empty((hi + 1 - lo, n, n))
-        block[0] = Z[-1]
-        if hi > lo:
-            A = run_jacobians(model, x, t, inputs, substeps, slice(lo, hi))
-            # Z_{k+1} = A_k Z_k: one banded solve with the block's first
-            # state as the forcing of its first row
-            forcing = np.zeros((hi - lo, n, n))
-            forcing[0] = A[0] @ block[0]
-            with np.errstate(all="ignore"):
-                z, info = solve_recursion(A, forcing)
-            block[1:] = z if info == 0 else np.inf
+        return np.full((N, H.shape[1]), np.inf)
+    spread = np.empty((N, H.shape[1]))
+    with np.errstate(all="ignore"):
+        spread[0] = np.sqrt(_channel_var(H, root[None]))[0]
+    Z = root  # Z_k = A_{k-1} ... A_0 L, at the sample a block starts from
+    for lo, A in run_jacobians(model, x, t, inputs, substeps, BLOCK):
+        K = A.shape[0]
+        # Z_{k+1} = A_k Z_k over the block: one banded solve with the
+        # block's first state as the forcing of its first row
+        forcing = np.zeros((K, n, n))
+        forcing[0] = A[0] @ Z
         with np.errstate(all="ignore"):
-            spread[rows] = np.sqrt(_channel_var(H, block))
-        Z = block
+            z, info = solve_recursion(A, forcing)
+        if info != 0:
+            z = np.full((K, n, n), np.inf)
+        rows = slice(lo + 1, lo + K + 1)
+        H = rowwise_jacobian(measure, x[rows], scale=scale)
+        with np.errstate(all="ignore"):
+            spread[rows] = np.sqrt(_channel_var(H, z))
+        Z = z[-1]
     return np.where(np.isfinite(spread), spread, np.inf)
 
 

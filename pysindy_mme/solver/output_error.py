@@ -303,8 +303,15 @@ class OutputErrorFit:
         favour it): :func:`better_bic` passes the smaller of the two.
         """
         inflation = self.inflation if inflation is None else inflation
-        n_eff = max(self.n_residuals / inflation, 2.0)
-        return self.cost / inflation + len(self.slots) * np.log(n_eff)
+        return bic_of(self.cost, self.n_residuals, len(self.slots), inflation)
+
+
+def bic_of(cost, n_residuals, n_terms, inflation) -> float:
+    """The BIC of :meth:`OutputErrorFit.bic` from its parts: ``cost`` over
+    ``inflation``, plus ``n_terms`` times the log of the effective sample
+    (``n_residuals`` over ``inflation``, at least 2)."""
+    n_eff = max(n_residuals / inflation, 2.0)
+    return cost / inflation + n_terms * np.log(n_eff)
 
 
 class OutputErrorModel:
