@@ -2,10 +2,12 @@
 
 Phase I (Draper & Smith's stepwise regression): in each iteration, if a
 function in the model has a partial F-ratio (eq. 20) below the removal
-threshold, the weakest one leaves; otherwise the candidate with the largest
-partial F-ratio of entry (eq. 19) enters if it reaches the entry threshold.
-Which F-ratios (classic or Newey-West robust) and which thresholds is the
-rule's business (:mod:`.rules`).
+threshold, the weakest one leaves; otherwise, of the candidates whose partial
+F-ratio of entry reaches the entry threshold, the one that lowers the
+residual sum of squares most (the largest classic F-ratio, eq. 19) enters.
+Which F-ratios decide (classic or Newey-West robust) and which thresholds is
+the rule's business (:mod:`.rules`); with classic ones the candidate that
+enters is the one with the largest F-ratio, as in the paper.
 
 Phase II (the paper's floating threshold): the threshold becomes the largest
 partial F-ratio in the model divided by ``float_ratio``; the weakest function
@@ -236,13 +238,23 @@ def _next_action(state, rule, phase: int, ratio: float, backward: bool = False):
         return ("remove", state.support[i], float(f_in[i]), remove_thr)
     if backward or state.exact_fit():
         return None
-    f_cand = rule.candidate_f(state) if phase == 1 else state.candidate_f()
+    classic = state.candidate_f()
+    f_cand = rule.candidate_f(state) if phase == 1 else classic
     if f_cand.size:
         if phase == 1:
             f_cand = np.where(rule.relevant_candidates(state), f_cand, -np.inf)
-        best = int(np.argmax(f_cand))
         # -inf marks "not eligible"; +inf (exact improvement) may enter.
-        if f_cand[best] > -np.inf and f_cand[best] >= enter_thr:
+        passing = (f_cand > -np.inf) & (f_cand >= enter_thr)
+        if np.any(passing):
+            # The rule's statistic decides which candidates may enter; of
+            # those, the one that lowers the residual sum of squares most
+            # (the classic F-ratio, eq. 19) enters. A robust F-ratio divides
+            # by each candidate's own long-run variance: it calibrates the
+            # test, but ranking by it prefers a worse-fitting look-alike whose
+            # score happens to be less autocorrelated (x0^5 for a weak x0^3 in
+            # a degree-5 cubic oscillator at 5 % noise). With classic
+            # F-ratios (Phase II, ClassicRule) this is the largest one.
+            best = int(np.argmax(np.where(passing, classic, -np.inf)))
             return ("add", best, float(f_cand[best]), enter_thr)
     return None
 

@@ -61,7 +61,8 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     Newey-West robust partial F-ratio, which does not count autocorrelated
     residual samples as independent evidence, reaches the Bonferroni critical
     value for the number of candidates outside the model at family-wise level
-    ``alpha``. Where the residual this leaves is smooth (lag-1
+    ``alpha``; of the candidates that reach it, the one that lowers the
+    residual sum of squares most enters. Where the residual this leaves is smooth (lag-1
     autocorrelation above 0.9, as with MME's estimate of the model error),
     the selection is redone with the paper's rule (``F* = 10`` and its
     floating Phase II), which was designed for that case. (Terms that matter

@@ -10,7 +10,9 @@
 * Held out (systems the rule was not developed on, fixed seeds, looked at only
   after the rule was fixed): Lu's system at 5 % noise, 0 of 8 exact without
   the correction, 8 with it; Sprott's case A and Rabinovich-Fabrikant, no
-  seed lost at 1 and 5 %.
+  seed lost at 1 and 5 % (Rabinovich-Fabrikant at 5 %: 2 of 8 both ways;
+  since session 29's choice of the best-fitting passing candidate, 5 with
+  the correction, 0 without).
 """
 
 from __future__ import annotations
@@ -262,8 +264,10 @@ HELD_OUT = [
     (_lu, [-3.0, 2.0, 20.0], 0.001, 10.0, 2, 0.05, 8, 0),
     (_lu, [-3.0, 2.0, 20.0], 0.001, 10.0, 2, 0.01, 8, 8),
     (_sprott_a, [0.0, 5.0, 0.0], 0.01, 100.0, 2, 0.05, 8, 8),
-    (_rabinovich, [-1.0, 0.0, 0.5], 0.005, 50.0, 3, 0.01, 7, 7),
-    (_rabinovich, [-1.0, 0.0, 0.5], 0.005, 50.0, 3, 0.05, 2, 2),
+    # session 29 (of the candidates that pass, the best fit enters): 7 and
+    # 7 became 8 and 8 at 1 %, 2 and 2 became 5 and 0 at 5 %
+    (_rabinovich, [-1.0, 0.0, 0.5], 0.005, 50.0, 3, 0.01, 8, 8),
+    (_rabinovich, [-1.0, 0.0, 0.5], 0.005, 50.0, 3, 0.05, 5, 0),
 ]
 
 

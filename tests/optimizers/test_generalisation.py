@@ -27,7 +27,11 @@ from scipy.integrate import solve_ivp
 
 from pysindy_mme import FloatingFStepwise
 from pysindy_mme.optimizers.rules import MIN_EFFECT
-from pysindy_mme.optimizers.selection import JOINT_MIN_EFFECT, restart_effect
+from pysindy_mme.optimizers.selection import (
+    JOINT_MIN_EFFECT,
+    _next_action,
+    restart_effect,
+)
 
 
 def _hopf(t, x, mu=0.5):
@@ -161,3 +165,89 @@ def test_a_million_rows_lorenz():
     expected[1, [1, 2, 6]] = True
     expected[2, [3, 5]] = True
     np.testing.assert_array_equal(_fit(theta, dx).coef_ != 0, expected)
+
+
+# ----------------------------------- which of the passing candidates enters
+class _StubState:
+    """A model of ``k`` functions whose candidates have the given classic
+    F-ratios (``-inf``: not eligible)."""
+
+    def __init__(self, classic, k=0):
+        self._classic = np.asarray(classic, float)
+        self.k = k
+        self.support = list(range(k))
+
+    def candidate_f(self):
+        return self._classic.copy()
+
+    def in_model_f(self):
+        return np.full(self.k + 1, 1e6)
+
+    def exact_fit(self):
+        return False
+
+
+class _StubRule:
+    """A rule whose statistic of entry is ``robust`` (any other test would
+    do), with a fixed threshold and every candidate relevant."""
+
+    def __init__(self, robust, threshold=10.0):
+        self._robust = np.asarray(robust, float)
+        self.threshold = threshold
+
+    def thresholds(self, k):
+        return self.threshold, self.threshold
+
+    def in_model_f(self, state):
+        return state.in_model_f()[1:]
+
+    def relevant_in_model(self, state):
+        return np.ones(state.k, dtype=bool)
+
+    def candidate_f(self, state):
+        return self._robust.copy()
+
+    def relevant_candidates(self, state):
+        return np.ones(self._robust.shape, dtype=bool)
+
+
+@pytest.mark.parametrize(
+    "classic, robust, expected",
+    [
+        # both pass the rule's test: the better fit enters, with the rule's
+        # statistic recorded (before: candidate 0, the larger robust F)
+        ([50.0, 80.0, 5.0], [40.0, 20.0, 3.0], ("add", 1, 20.0, 10.0)),
+        # the better fit fails the rule's test: it cannot enter
+        ([50.0, 80.0, 5.0], [40.0, 8.0, 3.0], ("add", 0, 40.0, 10.0)),
+        # none passes
+        ([50.0, 80.0], [9.0, 8.0], None),
+        # not eligible stays out whatever its fit
+        ([np.inf, 80.0], [-np.inf, 20.0], ("add", 1, 20.0, 10.0)),
+    ],
+)
+def test_of_the_candidates_that_pass_the_best_fit_enters(classic, robust, expected):
+    state, rule = _StubState(classic), _StubRule(robust)
+    assert _next_action(state, rule, phase=1, ratio=10.0) == expected
+
+
+def test_phase_two_enters_the_largest_classic_f():
+    state = _StubState([50.0, 80.0, 5.0], k=0)
+    assert _next_action(state, _StubRule([40.0, 20.0, 3.0]), 2, 10.0) == (
+        "add",
+        1,
+        80.0,
+        10.0,
+    )
+
+
+@pytest.mark.parametrize("seed", [4, 5, 16])
+def test_cubic_oscillator_degree_five_weak_term_by_its_fit(seed):
+    """5 % noise, PolynomialLibrary(5): after 2 y^3, x' = -0.1 x^3 + 2 y^3
+    needs its weak x^3, which fits better than x^5 in these seeds (the
+    residual sum of squares 3.5, 4.6 and 1.4 noise variances lower), but
+    whose Newey-West F-ratio is smaller (55 against 74 in seed 4). Both pass
+    the test; ranked by the robust F-ratio x^5 entered (and y^5 in y' of
+    seed 4). In seeds 0, 3, 8 and 14 x^5 fits better, and enters."""
+    theta, dx, support = _record(_cubic, [2.0, 0.0], 0.01, 25.0, 5, 0.05, seed)
+    opt = _fit(theta, dx)
+    np.testing.assert_array_equal(opt.coef_ != 0, support)
