@@ -65,6 +65,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import itertools  # noqa: E402
 import json  # noqa: E402
 import multiprocessing  # noqa: E402
 import tempfile  # noqa: E402
@@ -580,6 +581,49 @@ def _print_group(results, n_seeds):
     )
 
 
+def best_fitting_size_k(theta, target, k: int, truth) -> bool:
+    """Whether ``truth`` (k column indices) has the smallest residual sum of
+    squares of all supports of ``k`` columns (no other fits as well)."""
+
+    def rss(cols):
+        a = theta[:, list(cols)]
+        r = target - a @ np.linalg.lstsq(a, target, rcond=None)[0]
+        return float(r @ r)
+
+    best = rss(truth)
+    return not any(
+        rss(cols) < best
+        for cols in itertools.combinations(range(theta.shape[1]), k)
+        if cols != tuple(truth)
+    )
+
+
+def print_best_subset(systems, levels, seeds):
+    """The ceiling of any rule that chooses a support of the true size by its
+    fit: seeds whose true support fits best of its size in every equation."""
+    print("| system | noise | true support fits best of its size |")
+    print("|---|---|---:|")
+    for i in systems:
+        if SYSTEMS[i].wide:
+            continue
+        for level in levels:
+            hits = 0
+            for seed in seeds:
+                theta, dx, coef = _record(i, level, seed)
+                hits += all(
+                    best_fitting_size_k(
+                        theta,
+                        dx[:, t],
+                        int(np.sum(coef[t] != 0)),
+                        np.flatnonzero(coef[t]),
+                    )
+                    for t in range(coef.shape[0])
+                )
+            print(
+                f"| {SYSTEMS[i].name} | {level:.1%} | {hits}/{len(seeds)} |", flush=True
+            )
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 seeds per row")
@@ -619,6 +663,13 @@ def main(argv=None):
         default=str(Path(tempfile.gettempdir()) / "pysindy_mme_bench_dropin"),
         help="folder for per-record results",
     )
+    parser.add_argument(
+        "--best-subset",
+        action="store_true",
+        help="instead of the methods: in how many seeds the true support is "
+        "the best-fitting support of its size in every equation (exhaustive "
+        "least squares; narrow systems only)",
+    )
     args = parser.parse_args(argv)
     n_seeds = 3 if args.quick else args.seeds
     methods = None if args.methods is None else args.methods.split(",")
@@ -639,6 +690,9 @@ def main(argv=None):
         if args.noise is None
         else tuple(float(v) for v in args.noise.split(","))
     )
+    if args.best_subset:
+        print_best_subset(systems, levels, range(n_seeds))
+        return None
     results = run(
         range(n_seeds),
         args.jobs,
