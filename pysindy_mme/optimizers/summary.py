@@ -249,6 +249,11 @@ def _ROUTES(route: str) -> str:  # noqa: N802 - reads as a phrase
         "as given (the target shares the library's noise)": (
             "is fitted as given (the target shares the library's noise)"
         ),
+        "corrected, the model as given indefinite": (
+            "is the corrected selection's (the selection on the library as "
+            "given has columns collinear to within the noise: it cannot be "
+            "fitted in the corrected metric)"
+        ),
     }
     base, _, then = route.partition(", then ")
     text = words.get(base, base)

@@ -54,6 +54,11 @@ def _rabinovich(t, x, g=0.87, a=1.1):
     ]
 
 
+def _hopf(t, x, mu=0.5):
+    r2 = x[0] ** 2 + x[1] ** 2
+    return [mu * x[0] - x[1] - x[0] * r2, x[0] + mu * x[1] - x[1] * r2]
+
+
 def _fit(theta, dx, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -341,3 +346,18 @@ def test_rikitakes_restart_that_ends_larger_is_exchanged():
     assert not np.array_equal(
         _fit(theta, dx, errors_in_variables=False).coef_ != 0, coef
     )
+
+
+def test_a_model_as_given_that_is_indefinite_when_corrected_is_not_compared():
+    """Hopf normal form at 5 % noise (seed 4), the first 794 rows (a
+    training fold of FloatingFStepwiseCV), alpha 0.2: x0''s selection on the
+    library as given has columns that are collinear to within the noise the
+    correction removes; comparing it in the corrected metric raised
+    LinAlgError (a Cholesky factor of an indefinite matrix). The corrected
+    selection is kept, and the summary says why."""
+    theta, dx, _ = _record(_hopf, [2.0, 0.0], 0.01, 10.0, 3, 0.05, 4)
+    opt = _fit(theta[:794], dx[:794], alpha=0.2)
+    routes = opt.errors_in_variables_["routes"]
+    assert routes[0] == "corrected, the model as given indefinite"
+    assert "cannot be fitted in the corrected metric" in str(opt.summary())
+    assert np.all(np.isfinite(opt.coef_))
