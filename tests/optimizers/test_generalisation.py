@@ -96,6 +96,10 @@ def test_cubic_oscillator_degree_five_at_low_noise():
         (_hopf, [2.0, 0.0], 10.0, 3, 0.01, 9),
         # measured 9/10: seed 8 keeps a forward-selected x0 x1^4 in y'
         (_cubic, [2.0, 0.0], 25.0, 5, 0.001, 9),
+        # 5 % noise: 5/10 since session 29 (before: 3). The least-squares fit
+        # prefers x0^5 to the weak x0^3 in seeds 0, 3, 6 and 8, so a rule
+        # that chooses by fit can reach 6 at most; seed 2 misses x0^3
+        (_cubic, [2.0, 0.0], 25.0, 5, 0.05, 5),
         (_rikitake, [1.0, 2.0, 3.0], 30.0, 3, 0.01, 10),
     ],
 )
