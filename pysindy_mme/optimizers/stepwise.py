@@ -62,12 +62,12 @@ class FloatingFStepwise(EstimatorInterface, BaseOptimizer):
     residual samples as independent evidence, reaches the Bonferroni critical
     value for the number of candidates outside the model at family-wise level
     ``alpha``; of the candidates that reach it, the one that lowers the
-    residual sum of squares most enters. Where the residual this leaves is smooth (lag-1
-    autocorrelation above 0.9, as with MME's estimate of the model error),
-    the selection is redone with the paper's rule (``F* = 10`` and its
-    floating Phase II), which was designed for that case. (Terms that matter
-    only together, whose parts no forward step admits alone, are caught by a
-    joint test of the candidates Phase I left out: if they are jointly
+    residual sum of squares most enters. Where the residual this leaves is
+    smooth (lag-1 autocorrelation above 0.9, as with MME's estimate of the
+    model error), the selection is redone with the paper's rule (``F* = 10``
+    and its floating Phase II), which was designed for that case. (Terms that
+    matter only together, whose parts no forward step admits alone, are
+    caught by a joint test of the candidates Phase I left out: if they are jointly
     significant, all enter and the rule removes them one at a time; the
     result is kept only if it is relevantly better than the forward model,
     since with many rows a derivative's systematic error is significant
