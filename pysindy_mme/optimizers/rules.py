@@ -93,15 +93,15 @@ class ClassicRule:
     def in_model_f(self, state) -> np.ndarray:
         return state.in_model_f()[1:]
 
-    def candidate_f(self, state) -> np.ndarray:
-        return state.candidate_f()
+    def candidate_f(self, state, classic) -> np.ndarray:
+        return classic
 
     # The classic rule is Draper & Smith's: significance only.
     def relevant_in_model(self, state) -> np.ndarray:
         return np.ones(state.k, dtype=bool)
 
-    def relevant_candidates(self, state) -> np.ndarray:
-        return np.ones(state.candidate_f().shape, dtype=bool)
+    def relevant_candidates(self, state, classic) -> np.ndarray:
+        return np.ones(classic.shape, dtype=bool)
 
 
 class FamilywiseRule:
@@ -157,8 +157,9 @@ class FamilywiseRule:
             return state.in_model_f()[1:]
         return state.robust_in_model_f(self.lags)[1:]
 
-    def candidate_f(self, state) -> np.ndarray:
-        classic = state.candidate_f()
+    def candidate_f(self, state, classic) -> np.ndarray:
+        """The rule's F-ratios of entry, from the state's classic ones
+        (``state.candidate_f()``, computed once per step by the caller)."""
         if not self.robust:
             return classic
         return state.robust_candidate_f(self.lags, classic)
@@ -168,10 +169,11 @@ class FamilywiseRule:
         dof = state.n_eff - state.k - 1
         return state.in_model_f()[1:] >= MIN_EFFECT * dof
 
-    def relevant_candidates(self, state) -> np.ndarray:
-        """Whether each candidate would have f^2 >= ``MIN_EFFECT`` once in."""
+    def relevant_candidates(self, state, classic) -> np.ndarray:
+        """Whether each candidate would have f^2 >= ``MIN_EFFECT`` once in
+        (``classic``: the state's classic F-ratios of entry)."""
         dof = state.n_eff - state.k - 2
-        return state.candidate_f() >= MIN_EFFECT * dof
+        return classic >= MIN_EFFECT * dof
 
 
 def make_rule(params, n_candidates: int, n_eff: float, n_rows: int, robust: bool):

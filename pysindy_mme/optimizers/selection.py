@@ -239,10 +239,11 @@ def _next_action(state, rule, phase: int, ratio: float, backward: bool = False):
     if backward or state.exact_fit():
         return None
     classic = state.candidate_f()
-    f_cand = rule.candidate_f(state) if phase == 1 else classic
+    f_cand = rule.candidate_f(state, classic) if phase == 1 else classic
     if f_cand.size:
         if phase == 1:
-            f_cand = np.where(rule.relevant_candidates(state), f_cand, -np.inf)
+            relevant = rule.relevant_candidates(state, classic)
+            f_cand = np.where(relevant, f_cand, -np.inf)
         # -inf marks "not eligible"; +inf (exact improvement) may enter.
         passing = (f_cand > -np.inf) & (f_cand >= enter_thr)
         if np.any(passing):

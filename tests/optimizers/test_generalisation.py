@@ -208,10 +208,10 @@ class _StubRule:
     def relevant_in_model(self, state):
         return np.ones(state.k, dtype=bool)
 
-    def candidate_f(self, state):
+    def candidate_f(self, state, classic):
         return self._robust.copy()
 
-    def relevant_candidates(self, state):
+    def relevant_candidates(self, state, classic):
         return np.ones(self._robust.shape, dtype=bool)
 
 
