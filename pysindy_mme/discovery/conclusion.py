@@ -227,6 +227,11 @@ class Evidence:
         Where the extended model's out-of-sample run stops being determined
         by its initial state's estimate (:mod:`~pysindy_mme.protocols.spread`),
         as a sentence; None: determined throughout.
+    out_uncertainty : RunUncertainty or None
+        Whether the extended model's out-of-sample miss is the uncertainty
+        of its coefficients and start
+        (:mod:`~pysindy_mme.protocols.uncertainty`); None: not measured (the
+        run at the noise, or a protocol that does not measure it).
     unidentified : list of str
         Sentences naming undetermined quantities.
     parameters : list of str
@@ -267,6 +272,7 @@ class Evidence:
     out_source: str | None = None
     out_converged: bool = True
     out_spread: str | None = None
+    out_uncertainty: object = None
     rivals: list = field(default_factory=list)
     unidentified: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
@@ -453,6 +459,17 @@ def _with_terms(ev: Evidence) -> Conclusion:
             advice.append(_TRY["look"])
         if not ev.out_converged:
             blockers.append("the refits without the held-out stretch did not converge")
+        out = ev.out_uncertainty
+        if out is not None and not np.isfinite(out.expected):
+            # the miss is beyond the noise and the estimates' uncertainty can
+            # make the run diverge: the data cannot tell whose the miss is
+            blockers.append(
+                f"on {ev.out_source} it misses the data by {sig(out.observed, 3)}x "
+                "the noise, and its run with a coefficient moved by one standard "
+                "error diverges: whether that miss is the model's or its "
+                "estimates' is not known"
+            )
+            advice.append(_TRY["carry"])
     if blockers:
         return _inconclusive(
             [f"the study kept {terms}, but {blockers[0]}"] + blockers[1:], advice
@@ -466,6 +483,10 @@ def _with_terms(ev: Evidence) -> Conclusion:
     # why the extended model's held-out run misses the data by more than its
     # fit would suggest, where its start's estimate spreads it
     spread = (f"{ev.out_spread}",) if ev.out_spread else ()
+    # whether that miss is the uncertainty of the estimates (measured where
+    # the run is not at the noise)
+    out = ev.out_uncertainty
+    out_text = () if out is None else (f"on {ev.out_source} {out.sentence()}",)
     # other terms that fit nearly as well: the data explain the record with
     # these terms, but do not single them out
     rivals = tuple(ev.rivals)
@@ -475,13 +496,35 @@ def _with_terms(ev: Evidence) -> Conclusion:
         if rivals
         else ""
     )
-    if np.all(ev.rmse_extended <= FIT_FACTOR * ev.noise_floor):
+    fits_record = bool(np.all(ev.rmse_extended <= FIT_FACTOR * ev.noise_floor))
+    if fits_record and out is not None and out.beyond:
+        # the terms fit the record they were chosen on and beat the assumed
+        # model on data they were not, but miss those data by more than
+        # their estimates' uncertainty allows: look-alikes of the effect, or
+        # an effect that stretch exercises and the rest does not
+        verdict = (
+            "the data contradict the assumed model; the identified terms account "
+            f"for its record ({terms}: {gain_text}){rival_text}, but not for data "
+            f"they were not fitted to: on {ev.out_source} the extended model misses "
+            f"by {sig(out.observed, 3)}x the noise where its estimates' "
+            f"uncertainty allows {sig(out.expected, 3)}x"
+        )
+        reasons = (
+            f"{held[2]}",
+            *out_text,
+            *rivals,
+            *spread,
+            f"the extended model fits its record {fit_text} (at most {FIT_FACTOR}x)",
+        )
+        return Conclusion("partly explained", verdict, reasons, (_TRY["carry"],))
+    if fits_record:
         verdict = (
             "the data contradict the assumed model; the identified terms explain "
             f"it ({terms}: {gain_text}){rival_text}"
         )
         reasons = (
             f"{held[2]}",
+            *out_text,
             *rivals,
             *spread,
             f"the extended model fits its record {fit_text} (at most {FIT_FACTOR}x)",
@@ -501,6 +544,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
         )
         reasons = (
             f"{held[2]}",
+            *out_text,
             *rivals,
             f"the extended model still misses its record {fit_text}, more than "
             f"{FIT_FACTOR}x, but refitted with its kinks smoothed over half the "
@@ -519,6 +563,7 @@ def _with_terms(ev: Evidence) -> Conclusion:
     )
     reasons = (
         f"{held[2]}",
+        *out_text,
         *rivals,
         f"the extended model still misses its record {fit_text}, more than "
         f"{FIT_FACTOR}x: part of the effect is not in the library{kinks}",
@@ -623,6 +668,11 @@ _TRY = {
         "validation protocol's window) or predictions a few samples ahead "
         "(validation_protocol=KStepAhead(k=...)), which measure the model, not "
         "the estimate of its start"
+    ),
+    "carry": (
+        "a validation record that exercises the effect over the range you will "
+        "use the model in, a library with the effect's physical form "
+        "(PhysicsLibrary), or a longer record (narrower estimates)"
     ),
     "kinks": (
         "a narrower smoothing of the kinks (PhysicsLibrary(smoothing=...), 1e-3 by "

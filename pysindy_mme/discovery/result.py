@@ -9,6 +9,7 @@ import numpy as np
 from ..core.relaxation import overflow_columns_of
 from ..exceptions import NotSavedError
 from .estimates import ParameterEstimate
+from .extended_at import extended_model_at
 from .report import format_discovery
 
 __all__ = ["Discovery", "SavedDiscovery"]
@@ -323,7 +324,10 @@ class Discovery:
         -------
         dict
             ``{"assumed": FreeRun, "extended": FreeRun}`` (``x0``, ``x``,
-            ``rmse`` per channel, ``diverged_at``).
+            ``rmse`` per channel, ``diverged_at``; where the extended run
+            misses by more than 1.5x the noise, its ``uncertainty``: whether
+            that miss is the uncertainty of its coefficients and start,
+            :class:`~pysindy_mme.protocols.RunUncertainty`).
         """
         from ..protocols import ValidationProtocol
         from ..protocols.base import check_window
@@ -346,9 +350,34 @@ class Discovery:
             "assumed": self.study.model_at(self.assumed.fit.physical),
             "extended": self.extended_model,
         }
-        return protocol.score(
-            self.study, models, self.proposals.evaluate, self.substeps, record, window
+        return protocol.score_with_draws(
+            self.study,
+            models,
+            self.proposals.evaluate,
+            self.substeps,
+            record,
+            window,
+            self._coefficient_draws(),
         )
+
+    def _coefficient_draws(self) -> dict | None:
+        """The extended model at its coefficients moved one standard error
+        along each eigenvector of their covariance, for a run's
+        ``uncertainty`` (:mod:`~pysindy_mme.protocols.uncertainty`); None
+        without terms."""
+        from ..protocols.uncertainty import coefficient_draws
+
+        fit = self.confirmation.fit
+        if fit is None or not fit.slots:
+            return None
+        x_hat = np.asarray(self.mme.smoothed_x_, dtype=float)
+
+        def build(at):
+            return extended_model_at(
+                self.study, self.proposals, at, x_hat, self.substeps
+            )
+
+        return {"extended": coefficient_draws(fit, build)}
 
     @property
     def found_correction(self) -> bool:

@@ -31,6 +31,7 @@ from ..core.tables import sig
 from ..exceptions import DivergenceError, UnobservableError
 from ..protocols import ValidationContext
 from ..protocols.runs import FreeRun, free_run, measurement_function, pooled_runs
+from ..protocols.uncertainty import coefficient_draws
 from ..solver.output_error import OutputErrorFit, OutputErrorModel
 from .conclusion import Overshoot
 from .confirm import Confirmation, confirm_terms
@@ -1063,7 +1064,9 @@ def _moved_most(before, after, se, names, shown=3) -> str:
     return "; " + ", ".join(parts) if parts else ""
 
 
-def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
+def measure_gain(
+    study, fits: dict, models: dict, features, substeps, build_extended=None
+) -> Gain:
     """Step 5: free runs of both models, in sample and on held-out data.
 
     ``fits``: ``{"assumed": OutputErrorFit, "extended": OutputErrorFit}``;
@@ -1072,6 +1075,9 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
     initial state (never the fit's own trajectory, whose intervals need not
     join when the fit did not converge). Out of sample: the validation
     record when given, else a held-out stretch (:func:`held_out_runs`).
+    ``build_extended(fit)``: the extended model at a fit's quantities, for
+    the draws that tell whether a validation run's miss is their
+    uncertainty (:mod:`~pysindy_mme.protocols.uncertainty`).
     """
     runs = {
         name: in_sample_run(study, fits[name], models[name], substeps)
@@ -1093,8 +1099,14 @@ def measure_gain(study, fits: dict, models: dict, features, substeps) -> Gain:
             )
     if study.validation is None:
         return gain
+    extended = fits["extended"]
+    draws = (
+        {"extended": coefficient_draws(extended, build_extended)}
+        if build_extended is not None and extended.slots
+        else None
+    )
     outcome = study.validation_protocol.evaluate(
-        ValidationContext(study, models, features, substeps, runs)
+        ValidationContext(study, models, features, substeps, runs, draws=draws)
     )
     _set_out_of_sample(gain, outcome)
     return gain
@@ -1184,7 +1196,9 @@ def _refit_without(
 ):
     """Both models refitted on the samples ``keep`` only (an assumed model
     with no parameter or offset is the same model without them): ``(the
-    study on them, {"assumed", "extended"} models, both refits converged)``.
+    study on them, {"assumed", "extended"} models, both refits converged,
+    the extended refit's coefficients' draws)``
+    (:func:`~pysindy_mme.protocols.uncertainty.coefficient_draws`).
     ``rest``: further fields of the reduced study (its record breaks)."""
     u = study.u
     reduced = replace(
@@ -1207,10 +1221,12 @@ def _refit_without(
         # window's, not the fit's): it is the same model without the stretch
         assumed_model, settled = study.model_at(a.physical), True
     if not e.slots:
-        return reduced, {"assumed": assumed_model, "extended": assumed_model}, settled
+        models = {"assumed": assumed_model, "extended": assumed_model}
+        return reduced, models, settled, None
     refit_e = engine.fit(e.slots, e.theta, e.x[keep], tol=HELD_OUT_TOL)
     models = {"assumed": assumed_model, "extended": build_extended(refit_e)}
-    return reduced, models, settled and _settled(refit_e)
+    draws = {"extended": coefficient_draws(refit_e, build_extended)}
+    return reduced, models, settled and _settled(refit_e), draws
 
 
 def _settled(fit) -> bool:

@@ -61,7 +61,7 @@ anything else. ``result`` has these parts:
     Step 5: the :class:`~.gain.Gain` with its free runs (without the models
     that ran); its ``rounding_set`` since version 3 (a file of version 1 or
     2 reads with none); each free run's ``determined_until`` since version 4
-    (older files read with None).
+    and its ``uncertainty`` since version 5 (older files read with None).
 ``extended_model``
     Coefficients, intercept, ``substeps``, the assumed equations' text and
     the grey-box parameter values it runs with.
@@ -109,7 +109,7 @@ __all__ = [
 ]
 
 FORMAT = "pysindy-mme discovery"
-VERSION = 4
+VERSION = 5
 
 #: the :class:`~.inputs.Study` attributes saved (data, not code)
 STUDY_FIELDS = (
@@ -171,13 +171,14 @@ FIT_FIELDS = (
 MME_FIELDS = ("smoothed_x_", "d_", "W_", "covariance_ratio_", "residuals_")
 
 #: attributes of records that are code, not data (left out)
-_SKIP = {"FreeRun": {"model"}}
+_SKIP = {"FreeRun": {"model"}, "RunUncertainty": {"columns"}}
 
 
 def _record_types() -> dict:
     from ..core.sensors import ClippedChannel, Clipping
     from ..optimizers.selection import Step
     from ..protocols.runs import FreeRun
+    from ..protocols.uncertainty import RunUncertainty
     from .estimates import ParameterEstimate, TermEstimate
     from .gain import Gain
     from .identifiability import TradeOff
@@ -192,6 +193,7 @@ def _record_types() -> dict:
         ClippedChannel,
         Clipping,
         FreeRun,
+        RunUncertainty,
         Gain,
     )
     return {cls.__name__: cls for cls in types}

@@ -11,7 +11,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core.extended import ExtendedModel
 from ..core.progress import Progress
 from ..core.tables import p_value, sig
 from ..exceptions import DiscoveryWarning
@@ -27,6 +26,7 @@ from .conclusion import (
 from .confirm import RIVAL_BIC
 from .doubts import correlated_pairs, doubt_notes, generalisation_note
 from .estimates import TermEstimate
+from .extended_at import extended_model_at
 from .identifiability import exact_trade_offs
 from .inputs import check_study
 from .memory import discount_estimation_error
@@ -251,7 +251,7 @@ def run_study(study, progress: Progress) -> Discovery:
         study, engine, assumed, confirmation, proposals, estimate.x, substeps
     )
     extended_fit = confirmation.fit or assumed.fit
-    extended = _extended_model(study, proposals, extended_fit, estimate.x, substeps)
+    extended = extended_model_at(study, proposals, extended_fit, estimate.x, substeps)
     fits = {"assumed": assumed.fit, "extended": extended_fit}
     models = {"assumed": study.model_at(assumed.fit.physical), "extended": extended}
     # the integrator check reads the extended fit's linearisation
@@ -275,7 +275,13 @@ def run_study(study, progress: Progress) -> Discovery:
     # at 10^6 samples, held while its free runs and refits build their own)
     for fit in fits.values():
         fit.keep_statistics()
-    gain = measure_gain(study, fits, models, proposals.evaluate, substeps)  # 5
+
+    def build_extended(fit):
+        return extended_model_at(study, proposals, fit, estimate.x, substeps)
+
+    gain = measure_gain(  # 5
+        study, fits, models, proposals.evaluate, substeps, build_extended
+    )
     for name, where in rounding.items():
         rmse = np.asarray(gain.in_sample_runs[name].rmse, dtype=float)
         # a run that diverged is reported as such (RMSE inf) already
@@ -287,7 +293,7 @@ def run_study(study, progress: Progress) -> Discovery:
             study,
             gain,
             fits,
-            lambda fit: _extended_model(study, proposals, fit, estimate.x, substeps),
+            build_extended,
             proposals.evaluate,
             substeps,
             estimate.x,
@@ -443,6 +449,7 @@ def _evidence(
         out_source=gain.validation_source,
         out_converged=bool(gain.held_out_converged),
         out_spread=spread_sentence(gain, "extended"),
+        out_uncertainty=_out_uncertainty(gain),
         rivals=list(rivals),
         unidentified=[str(t) for t in trade_offs if not t.gauge]
         + _undetermined(fit, names, set(vanished)),
@@ -662,31 +669,12 @@ def _finer_if_needed(study, engine, assumed, confirmation, proposals, x_hat, sub
     return finer, base, needed
 
 
-def _extended_model(study, proposals, fit, x_hat, substeps) -> ExtendedModel:
-    """The model as printed: the assumed model at ``fit``'s parameters plus
-    ``fit.slots`` with ``fit``'s coefficients; its fixed-step simulations
-    take the study's RK4 steps per sample, so that a user reproduces the
-    study's free runs."""
-    n_lib = len(proposals.feature_names)
-    coef = np.zeros((study.n_states, n_lib))
-    intercept = np.zeros(study.n_states)
-    for (i, c), v in zip(fit.slots, fit.coefficients):
-        if c == proposals.constant_column:
-            intercept[i] = v
-        else:
-            coef[i, c] = v
-    z_ref = x_hat if study.u is None else np.hstack([x_hat, study.u])
-    return ExtendedModel(
-        study.assumed_at(fit.physical),
-        proposals.library,
-        coef,
-        study.state_names,
-        study.input_names,
-        intercept=intercept,
-        assumed_equations=study.assumed_equations,
-        z_reference=z_ref,
-        substeps=substeps,
-    )
+def _out_uncertainty(gain):
+    """Whether the extended model's out-of-sample miss is its estimates'
+    (:mod:`~pysindy_mme.protocols.uncertainty`; None: not measured)."""
+    runs = gain.validation_runs or {}
+    run = runs.get("extended")
+    return None if run is None else run.uncertainty
 
 
 def _terms(study, proposals, confirmation):

@@ -15,6 +15,10 @@ record; the report and the plot print the protocol's own description; the
 command line builds them from ``--validation``, ``--validation-window``
 and ``--k-step``. The interface is :class:`ValidationProtocol`
 (``base.py``); a new protocol is a subclass and an export here.
+
+A free run's :class:`RunUncertainty` (``uncertainty.py``) says whether its
+miss of data the model was not fitted to is the uncertainty of the model's
+coefficients and start, or the model's own.
 """
 
 from .base import ValidationContext, ValidationOutcome, ValidationProtocol
@@ -22,12 +26,14 @@ from .held_out import HeldOut
 from .k_step import KStepAhead
 from .leading_window import LeadingWindow
 from .runs import FreeRun
+from .uncertainty import RunUncertainty
 
 __all__ = [
     "FreeRun",
     "HeldOut",
     "KStepAhead",
     "LeadingWindow",
+    "RunUncertainty",
     "ValidationContext",
     "ValidationOutcome",
     "ValidationProtocol",

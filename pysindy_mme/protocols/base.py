@@ -70,12 +70,18 @@ class ValidationContext:
         stretch).
     refit_without : callable or None
         ``refit_without(keep, window, **study_fields) -> (study, models,
-        converged)``: both models refitted on the samples ``keep`` only
-        (the structure is the study's); None where no refit is possible.
+        converged, draws)``: both models refitted on the samples ``keep``
+        only (the structure is the study's), and ``draws`` as below for the
+        refits; None where no refit is possible.
     states : ndarray (N, n) or None
         The study's state estimate of its fitting record (MME's states): the
         guess the runs on a stretch of it start from (the runs do not depend
         on it; without it, each stretch is estimated again).
+    draws : dict or None
+        ``{name: [model, ...]}``: the model ``name`` at its coefficients
+        moved one standard deviation along each eigenvector of their
+        covariance (:func:`~.uncertainty.coefficient_draws`); a protocol that
+        can tells from them whether a run's miss is their uncertainty.
     """
 
     study: object
@@ -85,6 +91,7 @@ class ValidationContext:
     in_sample_runs: dict | None = None
     refit_without: object = None
     states: object = None
+    draws: dict | None = None
 
 
 @dataclass
@@ -142,6 +149,16 @@ class ValidationProtocol:
         """How the models were run and scored, as one sentence."""
         raise NotImplementedError
 
+    def score_with_draws(
+        self, study, models, features, substeps, record, window, draws, *, every=False
+    ) -> dict:
+        """:meth:`score`, and where the protocol can, each run's
+        ``uncertainty`` from the coefficients' ``draws``
+        (:class:`ValidationContext`; ``every``: also for a run at the noise,
+        one of several records' to be pooled). This default ignores them:
+        its runs have none (a protocol of your own need not measure it)."""
+        return self.score(study, models, features, substeps, record, window)
+
     # -- what the study calls --------------------------------------------------
     def evaluate(self, ctx: ValidationContext) -> ValidationOutcome | None:
         """Both models on the study's validation records (None without)."""
@@ -151,7 +168,16 @@ class ValidationProtocol:
         window = study.validation_window
         records = study.validation_records or [study.validation]
         per_record = [
-            self.score(study, ctx.models, ctx.features, ctx.substeps, r, window)
+            self.score_with_draws(
+                study,
+                ctx.models,
+                ctx.features,
+                ctx.substeps,
+                r,
+                window,
+                ctx.draws,
+                every=len(records) > 1,
+            )
             for r in records
         ]
         if len(records) == 1:

@@ -96,6 +96,13 @@ class HeldOut(ValidationProtocol):
     def score(self, study, models, features, substeps, record, window) -> dict:
         return self._method.score(study, models, features, substeps, record, window)
 
+    def score_with_draws(
+        self, study, models, features, substeps, record, window, draws, *, every=False
+    ) -> dict:
+        return self._method.score_with_draws(
+            study, models, features, substeps, record, window, draws, every=every
+        )
+
     def describe_method(self, window: int) -> str:
         return self._method.describe_method(window)
 
@@ -163,10 +170,12 @@ class HeldOut(ValidationProtocol):
                 "run_guesses",
                 {name: run.x[held] for name, run in ctx.in_sample_runs.items()},
             )
-        refitted, models, converged = ctx.refit_without(keep, window, **rest)
+        refitted, models, converged, draws = ctx.refit_without(keep, window, **rest)
         u = study.u
         record = (study.y[held], study.t[held], None if u is None else u[held])
-        runs = self.score(refitted, models, ctx.features, ctx.substeps, record, window)
+        runs = self.score_with_draws(
+            refitted, models, ctx.features, ctx.substeps, record, window, draws
+        )
         window = getattr(runs["assumed"], "window", None) or window
         return ValidationOutcome(
             runs, source, window, self.describe_method(window), bool(converged)

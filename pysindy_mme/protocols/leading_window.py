@@ -45,6 +45,13 @@ class LeadingWindow(ValidationProtocol):
     def score(self, study, models, features, substeps, record, window) -> dict:
         return window_runs(study, models, features, substeps, record, window)
 
+    def score_with_draws(
+        self, study, models, features, substeps, record, window, draws, *, every=False
+    ) -> dict:
+        return window_runs(
+            study, models, features, substeps, record, window, draws, every=every
+        )
+
     def describe_method(self, window: int) -> str:
         return (
             f"initial state from its first {window} samples, then a free run; "

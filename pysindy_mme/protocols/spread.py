@@ -28,7 +28,14 @@ import numpy as np
 from ..core.integrate import run_jacobians, solve_recursion
 from ..core.jacobian import column_scale, rowwise_jacobian
 
-__all__ = ["SPREAD_LIMIT", "run_spread", "determined_until", "noise_covariance_of"]
+__all__ = [
+    "SPREAD_LIMIT",
+    "run_spread",
+    "spread_columns",
+    "start_covariance_of",
+    "determined_until",
+    "noise_covariance_of",
+]
 
 #: a run counts as determined by its initial state while the spread that
 #: state's standard error causes in every measured channel is at most this
@@ -52,6 +59,23 @@ def noise_covariance_of(fit) -> np.ndarray:
     return cov
 
 
+def start_covariance_of(fit, n_offsets: int) -> np.ndarray:
+    """``(n + n_offsets)``: the joint covariance from the noise alone of a
+    window fit's initial state and its measurement offsets (the fit's last
+    ``n_offsets`` quantities; none: :func:`noise_covariance_of`). A short
+    window can hardly tell an offset from a shift of the state: each alone
+    is uncertain, their sum much less, and a run's spread needs both."""
+    x0 = noise_covariance_of(fit)
+    if n_offsets == 0:
+        return x0
+    s2 = float(fit.residual_variance * fit.inflation)
+    scale = s2 if np.isfinite(s2) and s2 > 0 else 1.0
+    off = slice(fit.theta.size - n_offsets, fit.theta.size)
+    cov_off = np.asarray(fit.covariance, dtype=float)[off, off] / scale
+    cross = np.asarray(fit.theta_x0_covariance, dtype=float)[off] / scale
+    return np.block([[x0, cross.T], [cross, cov_off]])
+
+
 def _square_root(cov) -> np.ndarray | None:
     """``L`` with ``L L^T = cov`` (None: a covariance that is not finite)."""
     cov = np.asarray(cov, dtype=float)
@@ -73,38 +97,59 @@ def run_spread(model, x, t, inputs, substeps, measure, x0_cov) -> np.ndarray:
     one before: the memory is a block's, the cost linear in the run.
     """
     x = np.asarray(x, dtype=float)
+    spread = None
+    for rows, HZ in spread_columns(model, x, t, inputs, substeps, measure, x0_cov):
+        if spread is None:
+            spread = np.empty((x.shape[0], HZ.shape[1]))
+        with np.errstate(all="ignore"):
+            spread[rows] = np.sqrt(np.einsum("kcl,kcl->kc", HZ, HZ))
+    return np.where(np.isfinite(spread), spread, np.inf)
+
+
+def spread_columns(model, x, t, inputs, substeps, measure, x0_cov):
+    """``(rows, HZ)`` along the run ``x`` in blocks: ``HZ (K, m, r)`` the
+    measured channels' changes at the samples ``rows`` per column of a square
+    root ``L`` of ``x0_cov`` (``H_k A_{k-1} ... A_0 L``; inf throughout when
+    the covariance is not finite). Arguments as :func:`run_spread`, which
+    sums their squares; :mod:`.uncertainty` needs the columns themselves.
+    ``x0_cov`` may go on past the ``n`` states with one row per channel, the
+    channels' offsets (:func:`start_covariance_of`): their rows of ``L`` add
+    to every sample's change."""
+    x = np.asarray(x, dtype=float)
     N, n = x.shape
     scale = column_scale(x)
     H = rowwise_jacobian(measure, x[:1], scale=scale)
     root = _square_root(x0_cov)
     if root is None:
-        return np.full((N, H.shape[1]), np.inf)
-    spread = np.empty((N, H.shape[1]))
+        size = np.shape(x0_cov)[0]
+        yield slice(0, N), np.full((N, H.shape[1], size), np.inf)
+        return
+    root, shift = root[:n], root[n:]  # the states' rows, the offsets'
     with np.errstate(all="ignore"):
-        spread[0] = np.sqrt(_channel_var(H, root[None]))[0]
+        yield slice(0, 1), _shifted(np.einsum("kcj,jl->kcl", H, root), shift)
     Z = root  # Z_k = A_{k-1} ... A_0 L, at the sample a block starts from
     for lo, A in run_jacobians(model, x, t, inputs, substeps, BLOCK):
         K = A.shape[0]
         # Z_{k+1} = A_k Z_k over the block: one banded solve with the
         # block's first state as the forcing of its first row
-        forcing = np.zeros((K, n, n))
+        forcing = np.zeros((K, n, Z.shape[1]))
         forcing[0] = A[0] @ Z
         with np.errstate(all="ignore"):
             z, info = solve_recursion(A, forcing)
         if info != 0:
-            z = np.full((K, n, n), np.inf)
+            z = np.full((K, n, Z.shape[1]), np.inf)
         rows = slice(lo + 1, lo + K + 1)
         H = rowwise_jacobian(measure, x[rows], scale=scale)
         with np.errstate(all="ignore"):
-            spread[rows] = np.sqrt(_channel_var(H, z))
+            yield rows, _shifted(np.einsum("kcj,kjl->kcl", H, z), shift)
         Z = z[-1]
-    return np.where(np.isfinite(spread), spread, np.inf)
 
 
-def _channel_var(H, Z) -> np.ndarray:
-    """``(N, m)``: the squared norms of the rows of ``H_k Z_k``."""
-    HZ = np.einsum("kcj,kjl->kcl", H, Z)
-    return np.einsum("kcl,kcl->kc", HZ, HZ)
+def _shifted(HZ, shift):
+    """``HZ`` with the offsets' rows of the root added to every sample."""
+    if shift.shape[0]:
+        HZ += shift[None]
+    return HZ
 
 
 def determined_until(spread, noise_sd, t, first: int = 0) -> float | None:

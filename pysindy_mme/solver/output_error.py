@@ -213,7 +213,11 @@ class OutputErrorFit:
             self._cov = (
                 self._engine._covariance(self)
                 if self._engine is not None
-                else (np.full((p, p), np.nan), np.full((n, n), np.nan))
+                else (
+                    np.full((p, p), np.nan),
+                    np.full((n, n), np.nan),
+                    np.full((p, n), np.nan),
+                )
             )
         return self._cov
 
@@ -224,6 +228,16 @@ class OutputErrorFit:
     @property
     def x0_covariance(self) -> np.ndarray:
         return self._covariances()[1]
+
+    @property
+    def theta_x0_covariance(self) -> np.ndarray:
+        """``(p, n)``: the covariance of ``theta`` with the initial state,
+        likewise (NaN for a fit loaded from a file of version 4 or older, or
+        where a parameter is not determined)."""
+        cov = self._covariances()
+        if len(cov) > 2:
+            return cov[2]
+        return np.full((self.theta.size, self.x.shape[1]), np.nan)
 
     @property
     def inflation(self) -> float:
@@ -733,7 +747,11 @@ class OutputErrorModel:
         it fixed there.
         """
         p, n = fit.theta.size, self.n_states
-        nan = (np.full((p, p), np.nan), np.full((n, n), np.nan))
+        nan = (
+            np.full((p, p), np.nan),
+            np.full((n, n), np.nan),
+            np.full((p, n), np.nan),
+        )
         if fit._state is None:
             return nan
         try:
@@ -749,21 +767,26 @@ class OutputErrorModel:
         x0_cov = sol.z[0, :n, :] * s2 * np.outer(unit, unit)  # to user units
         x0_cov = 0.5 * (x0_cov + x0_cov.T)
         if not p:
-            return np.zeros((0, 0)), x0_cov
+            return np.zeros((0, 0)), x0_cov, np.zeros((0, n))
         inverse, _ = equilibrated_inverse(sol.Sc)
         sub = inverse * s2
+        # the parameter rows of the same columns: their covariance with x_0
+        cross_sub = np.asarray(sol.dtheta, dtype=float).reshape(-1, n) * s2 * unit
         bad = undetermined(sol.Sc)
         if np.any(bad):
             # a direction the data do not determine (two parameters doing one
             # job): the variances of the parameters in it are unknown
             sub[bad, :] = np.nan
             sub[:, bad] = np.nan
+            cross_sub[bad, :] = np.nan
             fit.rank_deficient = True
         if free.all():
-            return sub, x0_cov
+            return sub, x0_cov, cross_sub
         cov = np.full((p, p), np.nan)
         cov[np.ix_(free, free)] = sub
-        return cov, x0_cov
+        cross = np.full((p, n), np.nan)
+        cross[free] = cross_sub
+        return cov, x0_cov, cross
 
     def scores(self, fit: OutputErrorFit, candidates):
         """Linearised partial F (and a first step) for adding each candidate.
