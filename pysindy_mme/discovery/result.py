@@ -350,15 +350,19 @@ class Discovery:
             "assumed": self.study.model_at(self.assumed.fit.physical),
             "extended": self.extended_model,
         }
-        return protocol.score_with_draws(
+        runs = protocol.score(
+            self.study, models, self.proposals.evaluate, self.substeps, record, window
+        )
+        protocol.measure_uncertainty(
             self.study,
+            runs,
             models,
+            self._coefficient_draws(),
             self.proposals.evaluate,
             self.substeps,
             record,
-            window,
-            self._coefficient_draws(),
         )
+        return runs
 
     def _coefficient_draws(self) -> dict | None:
         """The extended model at its coefficients moved one standard error

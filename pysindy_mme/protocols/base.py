@@ -27,7 +27,10 @@ from __future__ import annotations
 import numbers
 from dataclasses import dataclass
 
-from .runs import pooled_runs
+import numpy as np
+
+from .runs import at_the_noise, pooled_runs
+from .uncertainty import MissColumns
 
 __all__ = [
     "ValidationContext",
@@ -149,15 +152,15 @@ class ValidationProtocol:
         """How the models were run and scored, as one sentence."""
         raise NotImplementedError
 
-    def score_with_draws(
-        self, study, models, features, substeps, record, window, draws, *, every=False
-    ) -> dict:
-        """:meth:`score`, and where the protocol can, each run's
-        ``uncertainty`` from the coefficients' ``draws``
-        (:class:`ValidationContext`; ``every``: also for a run at the noise,
-        one of several records' to be pooled). This default ignores them:
-        its runs have none (a protocol of your own need not measure it)."""
-        return self.score(study, models, features, substeps, record, window)
+    def measure_uncertainty(
+        self, study, runs, models, draws, features, substeps, record, *, every=False
+    ) -> None:
+        """Where the protocol can, set each run's ``uncertainty``: whether
+        its miss of ``record`` is the uncertainty of its model's coefficients
+        and start, from the coefficients' ``draws`` (:class:`ValidationContext`;
+        ``every``: also for a run at the noise, one of several records' to be
+        pooled). This default measures nothing: a protocol of your own need
+        not (its runs then have no ``uncertainty``)."""
 
     # -- what the study calls --------------------------------------------------
     def evaluate(self, ctx: ValidationContext) -> ValidationOutcome | None:
@@ -168,25 +171,55 @@ class ValidationProtocol:
         window = study.validation_window
         records = study.validation_records or [study.validation]
         per_record = [
-            self.score_with_draws(
-                study,
-                ctx.models,
-                ctx.features,
-                ctx.substeps,
-                r,
-                window,
-                ctx.draws,
-                every=len(records) > 1,
-            )
+            self.score(study, ctx.models, ctx.features, ctx.substeps, r, window)
             for r in records
         ]
         if len(records) == 1:
             runs, source = per_record[0], "the validation record"
+            self.measure_uncertainty(
+                study,
+                runs,
+                ctx.models,
+                ctx.draws,
+                ctx.features,
+                ctx.substeps,
+                records[0],
+            )
         else:
             runs = pooled_runs(per_record, [r[0] for r in records])
             source = f"the {len(records)} validation records (RMSE pooled over them)"
+            self._pooled_uncertainty(ctx, runs, per_record, records)
         window = getattr(runs["assumed"], "window", None) or window
         return ValidationOutcome(runs, source, window, self.describe_method(window))
+
+    def _pooled_uncertainty(self, ctx, runs, per_record, records) -> None:
+        """The pooled runs' ``uncertainty`` where the pool misses by more than
+        the noise: every record's draws run (whatever its own run misses
+        by), the draws shared by the records, each record's start its own
+        (:meth:`~.uncertainty.MissColumns.stacked`)."""
+        noise_sd = np.sqrt(np.diag(np.atleast_2d(ctx.study.noise_cov)))
+        for name in ctx.draws or {}:
+            pooled = runs.get(name)
+            if pooled is None or pooled.diverged_at is not None:
+                continue
+            if at_the_noise(pooled.rmse, noise_sd):
+                continue
+            for record_runs, record in zip(per_record, records):
+                self.measure_uncertainty(
+                    ctx.study,
+                    record_runs,
+                    ctx.models,
+                    {name: ctx.draws[name]},
+                    ctx.features,
+                    ctx.substeps,
+                    record,
+                    every=True,
+                )
+            parts = [r[name].uncertainty for r in per_record]
+            if all(u is not None for u in parts):
+                both = MissColumns.stacked([u.columns for u in parts])
+                if both is not None:
+                    pooled.uncertainty = both.uncertainty(pooled.rmse)
 
     def __repr__(self) -> str:
         params = ", ".join(

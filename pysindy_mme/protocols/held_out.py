@@ -96,11 +96,11 @@ class HeldOut(ValidationProtocol):
     def score(self, study, models, features, substeps, record, window) -> dict:
         return self._method.score(study, models, features, substeps, record, window)
 
-    def score_with_draws(
-        self, study, models, features, substeps, record, window, draws, *, every=False
-    ) -> dict:
-        return self._method.score_with_draws(
-            study, models, features, substeps, record, window, draws, every=every
+    def measure_uncertainty(
+        self, study, runs, models, draws, features, substeps, record, *, every=False
+    ) -> None:
+        self._method.measure_uncertainty(
+            study, runs, models, draws, features, substeps, record, every=every
         )
 
     def describe_method(self, window: int) -> str:
@@ -173,8 +173,9 @@ class HeldOut(ValidationProtocol):
         refitted, models, converged, draws = ctx.refit_without(keep, window, **rest)
         u = study.u
         record = (study.y[held], study.t[held], None if u is None else u[held])
-        runs = self.score_with_draws(
-            refitted, models, ctx.features, ctx.substeps, record, window, draws
+        runs = self.score(refitted, models, ctx.features, ctx.substeps, record, window)
+        self.measure_uncertainty(
+            refitted, runs, models, draws, ctx.features, ctx.substeps, record
         )
         window = getattr(runs["assumed"], "window", None) or window
         return ValidationOutcome(

@@ -10,7 +10,7 @@ cascaded-tanks and Wiener-Hammerstein benchmarks score a simulation model.
 from __future__ import annotations
 
 from .base import ValidationProtocol
-from .runs import window_runs
+from .runs import measure_uncertainty, window_runs
 
 __all__ = ["LeadingWindow"]
 
@@ -45,11 +45,11 @@ class LeadingWindow(ValidationProtocol):
     def score(self, study, models, features, substeps, record, window) -> dict:
         return window_runs(study, models, features, substeps, record, window)
 
-    def score_with_draws(
-        self, study, models, features, substeps, record, window, draws, *, every=False
-    ) -> dict:
-        return window_runs(
-            study, models, features, substeps, record, window, draws, every=every
+    def measure_uncertainty(
+        self, study, runs, models, draws, features, substeps, record, *, every=False
+    ) -> None:
+        measure_uncertainty(
+            study, runs, models, draws, features, substeps, record, every=every
         )
 
     def describe_method(self, window: int) -> str:

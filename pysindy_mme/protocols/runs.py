@@ -22,6 +22,7 @@ from ..exceptions import DivergenceError, UnobservableError
 from ..solver.output_error import OutputErrorModel
 from .spread import (
     determined_until,
+    noise_covariance_of,
     run_spread,
     spread_columns,
     start_covariance_of,
@@ -151,32 +152,16 @@ def pooled_runs(per_record: list, ys: list) -> dict:
             pooled = np.sqrt(sq / np.maximum(count, 1))
         diverged = [r.diverged_at for r in runs if r.diverged_at is not None]
         spread = [r.determined_until for r in runs if r.determined_until is not None]
-        rmse = np.where(np.isfinite(pooled), pooled, np.inf)
-        # measured where every record's run misses by more than the noise
-        # (a record at the noise has no draws run)
-        columns = [
-            None if r.uncertainty is None else r.uncertainty.columns for r in runs
-        ]
-        pooled_columns = (
-            MissColumns.stacked(columns)
-            if all(c is not None for c in columns)
-            else None
-        )
         out[name] = FreeRun(
             x0=runs[0].x0,
             x=np.vstack([r.x for r in runs]),
-            rmse=rmse,
+            rmse=np.where(np.isfinite(pooled), pooled, np.inf),
             diverged_at=diverged[0] if diverged else None,
             model=runs[0].model,
             window=runs[0].window,
             records=runs,
             # the earliest of the records' (each record's in ``records``)
             determined_until=min(spread) if spread else None,
-            # the coefficients' draws are the same on every record, each
-            # record's start its own
-            uncertainty=None
-            if pooled_columns is None
-            else pooled_columns.uncertainty(rmse),
         )
     return out
 
@@ -312,8 +297,7 @@ def determined_window(study, models, features, substeps, record, inputs, guess, 
     """``(window, {name: (x0, offsets)}, {name: x0 covariance})``: the
     leading window, each model's initial state and offsets fitted to it, and
     that state's covariance from the noise alone
-    (:func:`.spread.start_covariance_of`: with ``study.offsets``, of the
-    state and the offsets together). A window that leaves some model's
+    (:func:`.spread.noise_covariance_of`). A window that leaves some model's
     initial state undetermined (:data:`X0_UNDETERMINED`) is doubled until it
     determines them all to :data:`X0_RELATIVE_SE`, up to a fifth of the
     record.
@@ -357,34 +341,23 @@ def determined_window(study, models, features, substeps, record, inputs, guess, 
             window, fits = longer, longer_fits
             worst = max(_x0_relative_se(f, spread) for f in fits.values())
     starts = {name: _start(study, f) for name, f in fits.items()}
-    m_off = y_v.shape[1] if study.offsets else 0
-    covs = {name: start_covariance_of(f, m_off) for name, f in fits.items()}
-    return window, starts, covs
+    return window, starts, {name: noise_covariance_of(f) for name, f in fits.items()}
 
 
-def window_runs(
-    study, models: dict, features, substeps, record, window, draws=None, *, every=False
-) -> dict:
+def window_runs(study, models: dict, features, substeps, record, window) -> dict:
     """Initial state from the leading ``window`` samples (lengthened where
     they do not determine it: :func:`determined_window`), then a free run,
     per model; RMSE over the samples after the window.
 
     ``study`` is read for ``mme``, ``inputs.hold``, ``measurement``,
     ``noise_cov``, ``n_states`` and ``offsets``; ``record`` is ``(y, t, u)``.
-    ``draws``: ``{name: [model, ...]}``, the model ``name`` at its
-    coefficients moved one standard deviation along each eigenvector of
-    their covariance (:func:`.uncertainty.coefficient_draws`): where that
-    model's run misses the data by more than :data:`.uncertainty.AT_THE_NOISE`
-    times the noise (``every``: whatever it misses by, for a record whose run
-    is pooled with others', :func:`pooled_runs`), its ``uncertainty`` says
-    whether the miss is theirs.
     """
     y_v, t_v, u_v = record
     window = observed_window(window, y_v)
     inputs_v = InputSignal(u_v, t_v, study.inputs.hold)
     measure = measurement_function(study.measurement)
     guess = record_guess(study, record)
-    window, starts, start_covs = determined_window(
+    window, starts, x0_covs = determined_window(
         study, models, features, substeps, record, inputs_v, guess, window
     )
     noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
@@ -415,101 +388,102 @@ def window_runs(
                 inputs_v,
                 substeps,
                 shifted,
-                # the state's share: an offset's error does not grow
-                start_covs[name][: study.n_states, : study.n_states],
+                x0_covs[name],
             )
             runs[name].determined_until = determined_until(
                 spread, noise_sd, t_v, window
             )
+    return runs
+
+
+def measure_uncertainty(
+    study, runs, models, draws, features, substeps, record, *, every=False
+) -> None:
+    """Set ``runs[name].uncertainty`` for each ``name`` in ``draws``: whether
+    that window run's miss of ``record`` is the uncertainty of its model's
+    coefficients and start (:mod:`.uncertainty`).
+
+    ``draws``: ``{name: [model, ...]}``, the model ``models[name]`` at its
+    coefficients moved one standard deviation along each eigenvector of
+    their covariance (:func:`.uncertainty.coefficient_draws`; None: not
+    measured). Measured where the run misses by more than
+    :data:`.uncertainty.AT_THE_NOISE` times the noise (``every``: whatever
+    it misses by, a record whose run is pooled with others', the pool's
+    miss judged); a run that diverged has no miss to judge.
+    """
+    noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
     for name, models_at_draws in (draws or {}).items():
         run = runs.get(name)
         if run is None or run.diverged_at is not None or models_at_draws is None:
             continue
-        if not every and _at_the_noise(run.rmse, noise_sd):
+        if not every and at_the_noise(run.rmse, noise_sd):
             continue  # a run at the noise needs no explaining (nor the runs)
-        x0, offsets = starts[name]
-
-        def shifted(x, offsets=offsets):
-            return measure(x) + offsets
-
         columns = miss_columns(
-            study,
-            run,
-            models[name],
-            models_at_draws,
-            features,
-            substeps,
-            record,
-            inputs_v,
-            shifted,
-            start_covs[name],
-            noise_sd,
+            study, run, models[name], models_at_draws, features, substeps, record
         )
         run.uncertainty = columns.uncertainty(run.rmse)
-    return runs
 
 
-def miss_columns(
-    study,
-    run,
-    model,
-    models_at_draws,
-    features,
-    substeps,
-    record,
-    inputs,
-    shifted,
-    x0_cov,
-    noise_sd,
-) -> MissColumns:
-    """What :func:`.uncertainty.run_uncertainty` reads of ``run`` (a run of
-    ``model`` from its window): each draw's run, its start fitted to the same
-    window, minus ``run`` in the measured channels, and the start's columns
-    carried along the run, over the scored samples."""
-    y_v, t_v, _ = record
+def miss_columns(study, run, model, models_at_draws, features, substeps, record):
+    """The :class:`.uncertainty.MissColumns` of ``run`` (a run of ``model``
+    from its window, :func:`window_runs`): each draw's run, its start fitted
+    to the same window, minus ``run`` in the measured channels, and the
+    start's (and the offsets') covariance carried along the run, over the
+    scored samples. The window is fitted again for the start's covariance
+    (from the run itself: the same start, without a state estimate of the
+    record)."""
+    y_v, t_v, u_v = record
     w = run.window
+    inputs = InputSignal(u_v, t_v, study.inputs.hold)
+    measure = measurement_function(study.measurement)
+    m_off = y_v.shape[1] if study.offsets else 0
+
+    def fitted(rhs):
+        return _window_fit(
+            study,
+            rhs,
+            features,
+            substeps,
+            y_v[:w],
+            t_v[:w],
+            inputs.subset(0, w),
+            run.x[:w],
+        )
+
+    own = fitted(model)
+    offsets = own.offsets if study.offsets else 0.0
+
+    def shifted(x, offsets=offsets):
+        return measure(x) + offsets
+
     nominal = shifted(run.x)[w:]
     changes = []
     for drawn in models_at_draws:
         try:
-            x0, offsets = window_fit(
-                study,
-                drawn,
-                features,
-                substeps,
-                y_v[:w],
-                t_v[:w],
-                inputs.subset(0, w),
-                run.x[:w],
-            )
+            x0, off = _start(study, fitted(drawn))
         except (DivergenceError, UnobservableError, np.linalg.LinAlgError):
             changes.append(np.full_like(nominal, np.inf))
             continue
 
-        def at_draw(x, offsets=offsets):
-            return measure_of(study)(x) + offsets
+        def at_draw(x, off=off):
+            return measure(x) + off
 
         moved = free_run(drawn, x0, t_v, inputs, substeps, at_draw, y_v, w, run.x)
         if moved.diverged_at is not None:
             changes.append(np.full_like(nominal, np.inf))
         else:
             changes.append(at_draw(moved.x)[w:] - nominal)
-    start = np.empty(run.x.shape[:1] + (nominal.shape[1], np.shape(x0_cov)[0]))
-    for rows, HZ in spread_columns(
-        model, run.x, t_v, inputs, substeps, shifted, x0_cov
-    ):
+    cov = start_covariance_of(own, m_off)
+    start = np.empty(run.x.shape[:1] + (nominal.shape[1], cov.shape[0]))
+    for rows, HZ in spread_columns(model, run.x, t_v, inputs, substeps, shifted, cov):
         start[rows] = HZ
     observed = np.isfinite(np.asarray(y_v, float)[w:])
-    return MissColumns(changes, start[w:], observed, np.asarray(noise_sd, float))
+    noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
+    return MissColumns(changes, start[w:], observed, noise_sd)
 
 
-def _at_the_noise(rmse, noise_sd) -> bool:
+def at_the_noise(rmse, noise_sd) -> bool:
     """The RMSE is within :data:`.uncertainty.AT_THE_NOISE` of the noise,
     combined over channels."""
     ratio = np.asarray(rmse, float) / np.asarray(noise_sd, float)
     return bool(np.sqrt(np.mean(ratio**2)) <= AT_THE_NOISE)
-
-
-def measure_of(study):
-    """``x -> y`` of ``study``'s measurement."""
-    return measurement_function(study.measurement)

@@ -155,6 +155,36 @@ def test_several_validation_records_share_the_coefficients_draws():
     assert res.conclusion == "explained"
 
 
+def test_records_pooled_at_the_noise_run_no_draws(monkeypatch):
+    import pysindy_mme.protocols.runs as runs_module
+
+    calls = []
+    original = runs_module.miss_columns
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(runs_module, "miss_columns", counted)
+    data = VDP.measure(0)
+    records = [
+        _validation(_van_der_pol(), x0, 10.0, 500 + k)
+        for k, x0 in enumerate([(0.5, -1.0), (-2.0, 0.0)])
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = paper_discover(
+            data.y,
+            data.t,
+            feature_library=ps.PolynomialLibrary(degree=3),
+            validation=records,
+        )
+    run = res.gain.validation_runs["extended"]
+    assert np.sqrt(np.mean((run.rmse / res.gain.noise_floor) ** 2)) <= 1.5
+    assert run.uncertainty is None and not calls
+    assert all(r.uncertainty is None for r in run.records)
+
+
 def test_validate_on_a_new_record_judges_the_miss_too(right_model):
     y_v, t_v = _validation(_van_der_pol(), (-1.0, 2.0), 300.0, 77)
     runs = right_model.validate(y_v, t_v)
