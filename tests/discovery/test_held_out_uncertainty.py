@@ -125,20 +125,27 @@ def test_a_run_its_one_standard_error_draw_makes_diverge_concludes_nothing():
     assert any("moved by one standard error diverges" in r for r in res.reasons)
 
 
-def test_several_validation_records_share_the_coefficients_draws():
-    data = VDP.measure(0)
+def _paper_with_two_validation_records(t_end, first_seed):
+    """The paper's seed-0 record, the true library, and two validation
+    records of ``t_end`` seconds from other states."""
     starts = [(0.5, -1.0), (-2.0, 0.0)]
     records = [
-        _validation(_van_der_pol(), x0, 300.0, 1000 + k) for k, x0 in enumerate(starts)
+        _validation(_van_der_pol(), x0, t_end, first_seed + k)
+        for k, x0 in enumerate(starts)
     ]
+    data = VDP.measure(0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = paper_discover(
+        return paper_discover(
             data.y,
             data.t,
             feature_library=ps.PolynomialLibrary(degree=3),
             validation=records,
         )
+
+
+def test_several_validation_records_share_the_coefficients_draws():
+    res = _paper_with_two_validation_records(300.0, 1000)
     run = res.gain.validation_runs["extended"]
     # every record's draws are run, whatever its own run misses by: the
     # pooled run's miss is what is judged
@@ -166,19 +173,7 @@ def test_records_pooled_at_the_noise_run_no_draws(monkeypatch):
         return original(*args, **kwargs)
 
     monkeypatch.setattr(runs_module, "miss_columns", counted)
-    data = VDP.measure(0)
-    records = [
-        _validation(_van_der_pol(), x0, 10.0, 500 + k)
-        for k, x0 in enumerate([(0.5, -1.0), (-2.0, 0.0)])
-    ]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = paper_discover(
-            data.y,
-            data.t,
-            feature_library=ps.PolynomialLibrary(degree=3),
-            validation=records,
-        )
+    res = _paper_with_two_validation_records(10.0, 500)
     run = res.gain.validation_runs["extended"]
     assert np.sqrt(np.mean((run.rmse / res.gain.noise_floor) ** 2)) <= 1.5
     assert run.uncertainty is None and not calls

@@ -178,19 +178,30 @@ def test_the_covariance_with_the_initial_state_is_least_squares(seed):
     assert fit.x0_covariance[0, 0] == pytest.approx(cov[0, 0], rel=1e-6)
 
 
-def test_a_fit_without_its_statistics_has_no_cross_covariance():
-    fit = OutputErrorFit(
-        slots=((0, 0),),
-        theta=np.array([1.0]),
+def _bare_fit(slots, theta, cov, **fields):
+    """An :class:`OutputErrorFit` with its statistics given, no solver."""
+    return OutputErrorFit(
+        slots=slots,
+        theta=theta,
         x=np.zeros((4, 2)),
-        cost=1.0,
-        n_residuals=4,
-        n_free=3,
         converged=True,
         message="",
         rank_deficient=False,
         n_iter=1,
-        _cov=(np.eye(1), np.eye(2)),  # as a file of version 4 stored it
+        _cov=cov,
+        **fields,
+    )
+
+
+def test_a_fit_without_its_statistics_has_no_cross_covariance():
+    # as a file of version 4 stored it: no covariance with the initial state
+    fit = _bare_fit(
+        ((0, 0),),
+        np.array([1.0]),
+        (np.eye(1), np.eye(2)),
+        cost=1.0,
+        n_residuals=4,
+        n_free=3,
     )
     assert fit.theta_x0_covariance.shape == (1, 2)
     assert np.all(np.isnan(fit.theta_x0_covariance))
@@ -220,21 +231,16 @@ def test_an_offset_adds_to_the_oscillators_rotated_covariance():
 # -- the coefficients' draws ---------------------------------------------------
 def _fit_with(cov, held=None):
     p = cov.shape[0]
-    fit = OutputErrorFit(
-        slots=tuple((1, j) for j in range(p - 1)),
-        theta=np.arange(1.0, p + 2.0),  # one physical parameter, p - 1 terms, an offset
-        x=np.zeros((4, 2)),
+    fit = _bare_fit(
+        tuple((1, j) for j in range(p - 1)),
+        np.arange(1.0, p + 2.0),  # one physical parameter, p - 1 terms, an offset
+        (np.pad(cov, ((0, 1), (0, 1))), np.eye(2)),
         cost=8.0,
         n_residuals=12,
         n_free=4,
-        converged=True,
-        message="",
-        rank_deficient=False,
-        n_iter=1,
         n_physical=1,
         n_offsets=1,
         _inflation=2.0,
-        _cov=(np.pad(cov, ((0, 1), (0, 1))), np.eye(2)),
     )
     if held is not None:
         fit.at_bound = np.asarray(held[:1], bool)
