@@ -44,15 +44,20 @@ def _paper_with_long_validation(seed, t_end=300.0, **kwargs):
     """The paper's record (another seed), the true library, and a validation
     record 30 times as long from another state: the run drifts in phase as
     far as its coefficients' errors take it."""
-    data = VDP.measure(seed)
     y_v, t_v = _validation(_van_der_pol(), (0.5, -1.0), t_end, 1000 + seed)
+    return _paper_study(seed, (y_v, t_v), **kwargs)
+
+
+def _paper_study(seed, validation, **kwargs):
+    """``discover`` on the paper's record of ``seed`` with the true library."""
+    data = VDP.measure(seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return paper_discover(
             data.y,
             data.t,
             feature_library=ps.PolynomialLibrary(degree=3),
-            validation=(y_v, t_v),
+            validation=validation,
             **kwargs,
         )
 
@@ -133,15 +138,7 @@ def _paper_with_two_validation_records(t_end, first_seed):
         _validation(_van_der_pol(), x0, t_end, first_seed + k)
         for k, x0 in enumerate(starts)
     ]
-    data = VDP.measure(0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return paper_discover(
-            data.y,
-            data.t,
-            feature_library=ps.PolynomialLibrary(degree=3),
-            validation=records,
-        )
+    return _paper_study(0, records)
 
 
 def test_several_validation_records_share_the_coefficients_draws():
