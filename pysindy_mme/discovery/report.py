@@ -452,6 +452,16 @@ def _gain(res) -> list:
                     "standard error of its initial state (carried along the run): "
                     "its RMSE there can measure that estimate as much as the model."
                 )
+        runs = g.validation_runs or {}
+        out_run = runs.get("extended")
+        uncertainty = None if out_run is None else out_run.uncertainty
+        if uncertainty is not None:
+            out.append(
+                "Beyond the noise out of sample, the extended model: "
+                f"{uncertainty.sentence()}; {uncertainty.directions} coefficient "
+                "direction(s) run one standard error away, the start's (and "
+                "offsets') covariance carried along."
+            )
     return out
 
 
