@@ -25,7 +25,7 @@ study needs no edit.
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -219,7 +219,14 @@ class ValidationProtocol:
             if all(u is not None for u in parts):
                 both = MissColumns.stacked([u.columns for u in parts])
                 if both is not None:
-                    pooled.uncertainty = both.uncertainty(pooled.rmse)
+                    pooled.uncertainty = replace(
+                        both.uncertainty(pooled.rmse), columns=None
+                    )
+            # a result keeps the numbers, not the columns (the records' size)
+            for record_runs in per_record:
+                found = record_runs[name].uncertainty
+                if found is not None:
+                    record_runs[name].uncertainty = replace(found, columns=None)
 
     def __repr__(self) -> str:
         params = ", ".join(

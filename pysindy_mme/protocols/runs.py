@@ -11,7 +11,7 @@ the model runs free over the record.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from sklearn.base import clone
@@ -409,7 +409,8 @@ def measure_uncertainty(
     measured). Measured where the run misses by more than
     :data:`.uncertainty.AT_THE_NOISE` times the noise (``every``: whatever
     it misses by, a record whose run is pooled with others', the pool's
-    miss judged); a run that diverged has no miss to judge.
+    miss judged: its columns are kept for that); a run that diverged has no
+    miss to judge.
     """
     noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
     for name, models_at_draws in (draws or {}).items():
@@ -421,7 +422,10 @@ def measure_uncertainty(
         columns = miss_columns(
             study, run, models[name], models_at_draws, features, substeps, record
         )
-        run.uncertainty = columns.uncertainty(run.rmse)
+        found = columns.uncertainty(run.rmse)
+        # the columns are kept only to be pooled: a result keeps the numbers
+        # (the columns are the record's size times the directions)
+        run.uncertainty = found if every else replace(found, columns=None)
 
 
 def miss_columns(study, run, model, models_at_draws, features, substeps, record):
