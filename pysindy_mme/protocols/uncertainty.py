@@ -31,8 +31,9 @@ every run). Below :data:`MISS_LEVEL` the miss is the model's, not its
 estimates'.
 
 The propagation is linear in each direction's one-standard-deviation run;
-a run the draw makes diverge has no spread to read (``expected`` inf), and
-nothing is concluded from it.
+a run the draw makes diverge has no spread to read (``expected`` inf): the
+study's conclusion is then "inconclusive", the data cannot tell whose the
+miss is.
 """
 
 from __future__ import annotations
