@@ -283,10 +283,8 @@ X0_RELATIVE_SE = 0.05
 def _x0_relative_se(fit, spread) -> float:
     """The largest standard error of ``fit``'s initial state over the
     states' ``spread`` (inf where it is not determined)."""
-    s2 = float(fit.residual_variance * fit.inflation)
-    cov = np.asarray(fit.x0_covariance, dtype=float)
-    if np.isfinite(s2) and s2 > 0:
-        cov = cov / s2  # the noise's share only: a model's misfit is its own
+    # the noise's share only: a model's misfit is its own
+    cov = noise_covariance_of(fit)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     seen = np.isfinite(spread) & (spread > 0)
     rel = np.where(np.isfinite(np.diag(cov)), se, np.inf)[seen] / spread[seen]

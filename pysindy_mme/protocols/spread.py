@@ -35,6 +35,7 @@ __all__ = [
     "start_covariance_of",
     "determined_until",
     "noise_covariance_of",
+    "noise_share",
 ]
 
 #: a run counts as determined by its initial state while the spread that
@@ -52,11 +53,15 @@ def noise_covariance_of(fit) -> np.ndarray:
     (a model's misfit beyond the noise is its own, not its start's): the
     fit's covariance over its residual variance times inflation, as
     :func:`~.runs._x0_relative_se` reads it. NaN where undetermined."""
-    cov = np.asarray(fit.x0_covariance, dtype=float)
+    return np.asarray(fit.x0_covariance, dtype=float) / noise_share(fit)
+
+
+def noise_share(fit) -> float:
+    """What ``fit``'s covariances are divided by to be the noise's alone: its
+    residual variance times inflation (1 where that is not a positive
+    number)."""
     s2 = float(fit.residual_variance * fit.inflation)
-    if np.isfinite(s2) and s2 > 0:
-        cov = cov / s2
-    return cov
+    return s2 if np.isfinite(s2) and s2 > 0 else 1.0
 
 
 def start_covariance_of(fit, n_offsets: int) -> np.ndarray:
@@ -68,8 +73,7 @@ def start_covariance_of(fit, n_offsets: int) -> np.ndarray:
     x0 = noise_covariance_of(fit)
     if n_offsets == 0:
         return x0
-    s2 = float(fit.residual_variance * fit.inflation)
-    scale = s2 if np.isfinite(s2) and s2 > 0 else 1.0
+    scale = noise_share(fit)
     off = slice(fit.theta.size - n_offsets, fit.theta.size)
     cov_off = np.asarray(fit.covariance, dtype=float)[off, off] / scale
     cross = np.asarray(fit.theta_x0_covariance, dtype=float)[off] / scale

@@ -43,6 +43,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from .spread import noise_share
+
 __all__ = [
     "AT_THE_NOISE",
     "MISS_LEVEL",
@@ -260,10 +262,8 @@ def coefficient_draws(fit, build) -> list | None:
     free = np.flatnonzero(~np.asarray(fit.held, bool)[:a])
     if free.size == 0:
         return None
-    cov = np.asarray(fit.covariance, dtype=float)[np.ix_(free, free)]
-    s2 = float(fit.residual_variance * fit.inflation)
-    if np.isfinite(s2) and s2 > 0:
-        cov = cov / s2  # the noise's share only: a model's misfit is its own
+    # the noise's share only: a model's misfit is its own
+    cov = np.asarray(fit.covariance, dtype=float)[np.ix_(free, free)] / noise_share(fit)
     if not np.all(np.isfinite(cov)):
         return None
     w, V = np.linalg.eigh(0.5 * (cov + cov.T))
