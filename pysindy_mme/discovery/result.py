@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -366,9 +367,9 @@ class Discovery:
 
     def _coefficient_draws(self) -> dict | None:
         """The extended model at its coefficients moved one standard error
-        along each eigenvector of their covariance, for a run's
-        ``uncertainty`` (:mod:`~pysindy_mme.protocols.uncertainty`); None
-        without terms."""
+        along each eigenvector of their covariance, made when a run's
+        ``uncertainty`` is measured (:mod:`~pysindy_mme.protocols.uncertainty`);
+        None without terms."""
         from ..protocols.uncertainty import coefficient_draws
 
         fit = self.confirmation.fit
@@ -381,7 +382,7 @@ class Discovery:
                 self.study, self.proposals, at, x_hat, self.substeps
             )
 
-        return {"extended": coefficient_draws(fit, build)}
+        return {"extended": partial(coefficient_draws, fit, build)}
 
     @property
     def found_correction(self) -> bool:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import warnings
 import weakref
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 from scipy import stats
@@ -1101,7 +1102,7 @@ def measure_gain(
         return gain
     extended = fits["extended"]
     draws = (
-        {"extended": coefficient_draws(extended, build_extended)}
+        {"extended": partial(coefficient_draws, extended, build_extended)}
         if build_extended is not None and extended.slots
         else None
     )
@@ -1225,7 +1226,9 @@ def _refit_without(
         return reduced, models, settled, None
     refit_e = engine.fit(e.slots, e.theta, e.x[keep], tol=HELD_OUT_TOL)
     models = {"assumed": assumed_model, "extended": build_extended(refit_e)}
-    draws = {"extended": coefficient_draws(refit_e, build_extended)}
+    # made only where a run misses beyond the noise (the refit's covariance
+    # is a bordered solve over the record)
+    draws = {"extended": partial(coefficient_draws, refit_e, build_extended)}
     return reduced, models, settled and _settled(refit_e), draws
 
 

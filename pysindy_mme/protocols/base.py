@@ -81,10 +81,11 @@ class ValidationContext:
         guess the runs on a stretch of it start from (the runs do not depend
         on it; without it, each stretch is estimated again).
     draws : dict or None
-        ``{name: [model, ...]}``: the model ``name`` at its coefficients
+        ``{name: make}``: ``make()`` the model ``name`` at its coefficients
         moved one standard deviation along each eigenvector of their
-        covariance (:func:`~.uncertainty.coefficient_draws`); a protocol that
-        can tells from them whether a run's miss is their uncertainty.
+        covariance (:func:`~.uncertainty.coefficient_draws`), made only where
+        a protocol measures a run; from them it tells whether a run's miss
+        is their uncertainty.
     """
 
     study: object
@@ -204,12 +205,13 @@ class ValidationProtocol:
                 continue
             if at_the_noise(pooled.rmse, noise_sd):
                 continue
+            made = ctx.draws[name]()  # once for all the records
             for record_runs, record in zip(per_record, records):
                 self.measure_uncertainty(
                     ctx.study,
                     record_runs,
                     ctx.models,
-                    {name: ctx.draws[name]},
+                    {name: lambda made=made: made},
                     ctx.features,
                     ctx.substeps,
                     record,

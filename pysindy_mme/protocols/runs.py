@@ -401,22 +401,26 @@ def measure_uncertainty(
     that window run's miss of ``record`` is the uncertainty of its model's
     coefficients and start (:mod:`.uncertainty`).
 
-    ``draws``: ``{name: [model, ...]}``, the model ``models[name]`` at its
-    coefficients moved one standard deviation along each eigenvector of
+    ``draws``: ``{name: make}``, ``make()`` the models ``models[name]`` at
+    its coefficients moved one standard deviation along each eigenvector of
     their covariance (:func:`.uncertainty.coefficient_draws`; None: not
-    measured). Measured where the run misses by more than
+    measured), called only for a run that is measured. Measured where the
+    run misses by more than
     :data:`.uncertainty.AT_THE_NOISE` times the noise (``every``: whatever
     it misses by, a record whose run is pooled with others', the pool's
     miss judged: its columns are kept for that); a run that diverged has no
     miss to judge.
     """
     noise_sd = np.sqrt(np.diag(np.atleast_2d(study.noise_cov)))
-    for name, models_at_draws in (draws or {}).items():
+    for name, make in (draws or {}).items():
         run = runs.get(name)
-        if run is None or run.diverged_at is not None or models_at_draws is None:
+        if run is None or run.diverged_at is not None:
             continue
         if not every and at_the_noise(run.rmse, noise_sd):
             continue  # a run at the noise needs no explaining (nor the runs)
+        models_at_draws = make()
+        if models_at_draws is None:
+            continue
         columns = miss_columns(
             study, run, models[name], models_at_draws, features, substeps, record
         )
